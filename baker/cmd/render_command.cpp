@@ -1,0 +1,136 @@
+// `nrad render`: path-traced reference image of a glTF scene.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "baker/cmd/commands.h"
+#include "baker/render/accel.h"
+#include "baker/render/image_io.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/path_tracer.h"
+#include "baker/scene/gltf_loader.h"
+#include "baker/util/progress.h"
+#include "baker/util/threads.h"
+
+namespace nrad {
+
+namespace {
+
+struct RenderOptions {
+    std::string scene;
+    std::string output;
+    int spp = 64;
+    int width = 0;
+    int height = 0;
+    int maxDepth = 0;
+    int camera = -1;
+    uint32_t seed = 0;
+    int threads = 0;
+    float exposure = 0.0f;
+    bool quiet = false;
+};
+
+void printImportSummary(const Scene& scene) {
+    const ImportStats& s = scene.stats;
+    std::fprintf(stderr, "scene: %s: %zu triangles (%zu read, %zu degenerate dropped), %zu materials, %zu textures, "
+                         "%zu emissive triangles, %zu punctual lights, %zu cameras\n",
+                 scene.sourcePath.c_str(), scene.mesh.triangleCount(), s.trianglesRead, s.degenerateTrianglesDropped,
+                 scene.materials.size(), scene.textures.size(), scene.emissiveTriangleCount(), scene.lights.size(),
+                 scene.cameras.size());
+    for (const std::string& w : s.warnings) std::fprintf(stderr, "warning: %s: %s\n", scene.sourcePath.c_str(), w.c_str());
+}
+
+int runRender(const RenderOptions& o) {
+    if (!isSupportedImagePath(o.output)) {
+        std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", o.output.c_str());
+        return kExitUsage;
+    }
+    ThreadScope threads(o.threads);
+    auto t0 = std::chrono::steady_clock::now();
+    Scene scene;
+    try {
+        scene = loadGltf(o.scene);
+    } catch (const SceneError& e) {
+        std::fprintf(stderr, "nrad render: %s\n", e.what());
+        return kExitBadInput;
+    }
+    if (!o.quiet) printImportSummary(scene);
+    if (scene.mesh.triangleCount() == 0) {
+        std::fprintf(stderr, "nrad render: %s: the scene has no triangles to render\n", o.scene.c_str());
+        return kExitBadInput;
+    }
+    Camera camera;
+    if (o.camera >= 0) {
+        if (size_t(o.camera) >= scene.cameras.size()) {
+            std::fprintf(stderr, "nrad render: --camera %d: %s has %zu camera(s)\n", o.camera, o.scene.c_str(),
+                         scene.cameras.size());
+            return kExitUsage;
+        }
+        camera = scene.cameras[size_t(o.camera)];
+    } else if (!scene.cameras.empty()) {
+        camera = scene.cameras.front();
+    } else {
+        camera = frameBounds(scene.bounds);
+        if (!o.quiet) std::fprintf(stderr, "camera: the scene has none; framing its bounds from +Z\n");
+    }
+    RenderSettings settings;
+    settings.spp = o.spp;
+    settings.maxDepth = o.maxDepth;
+    settings.seed = o.seed;
+    float aspect = camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f;
+    settings.width = o.width > 0 ? o.width : (o.height > 0 ? std::max(1, int(std::lround(o.height * aspect))) : 512);
+    settings.height = o.height > 0 ? o.height : std::max(1, int(std::lround(settings.width / aspect)));
+
+    Accel accel(scene.mesh);
+    LightSampler lights(scene);
+    if (lights.empty() && !o.quiet)
+        std::fprintf(stderr, "warning: %s: the scene has no light sources; the image is black\n", o.scene.c_str());
+    auto t1 = std::chrono::steady_clock::now();
+
+    PathTracer tracer(scene, accel, lights);
+    ProgressBar bar("render", !o.quiet);
+    RenderStats stats;
+    Image image = tracer.render(camera, settings, &stats, [&](double f) { bar.update(f); });
+    try {
+        writeImage(o.output, image, o.exposure);
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad render: %s\n", e.what());
+        return kExitIo;
+    }
+    double setup = std::chrono::duration<double>(t1 - t0).count();
+    std::printf("rendered %s: %dx%d, %d spp, max depth %s, %.2f s (scene setup %.2f s), %.3g samples, %.2f Mrays/s "
+                "(%llu camera, %llu extension, %llu shadow), %llu non-finite samples dropped -> %s\n",
+                o.scene.c_str(), settings.width, settings.height, settings.spp,
+                settings.maxDepth ? std::to_string(settings.maxDepth).c_str() : "unbounded", stats.seconds, setup,
+                double(stats.samples), stats.raysPerSecond() * 1e-6, (unsigned long long)stats.rays.primary,
+                (unsigned long long)stats.rays.extension, (unsigned long long)stats.rays.shadow,
+                (unsigned long long)stats.rays.nonFiniteSamples, o.output.c_str());
+    return kExitOk;
+}
+
+}  // namespace
+
+std::function<int()> addRenderCommand(CLI::App& app) {
+    auto opts = std::make_shared<RenderOptions>();
+    CLI::App* cmd = app.add_subcommand("render", "Path trace a reference image of a glTF scene");
+    cmd->add_option("scene", opts->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
+    cmd->add_option("-o,--output", opts->output, "Output image: .exr (linear float) or .png (sRGB)")->required();
+    cmd->add_option("--spp", opts->spp, "Samples per pixel")->check(CLI::Range(1, 1 << 24));
+    cmd->add_option("--width", opts->width, "Image width (default 512, or from --height and the camera aspect)")
+        ->check(CLI::Range(1, 1 << 15));
+    cmd->add_option("--height", opts->height, "Image height (default from the width and the camera aspect)")
+        ->check(CLI::Range(1, 1 << 15));
+    cmd->add_option("--max-depth", opts->maxDepth, "Maximum path length in segments; 0 = unbounded")
+        ->check(CLI::Range(0, 1 << 20));
+    cmd->add_option("--camera", opts->camera, "Camera index (default: the first; auto-framing if none)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--seed", opts->seed, "Seed of the quasi-random sequence");
+    cmd->add_option("--threads", opts->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
+    cmd->add_option("--exposure", opts->exposure, "PNG exposure in stops")->check(CLI::Range(-64.0f, 64.0f));
+    cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
+    return [opts]() { return runRender(*opts); };
+}
+
+}  // namespace nrad

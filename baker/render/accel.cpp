@@ -1,0 +1,132 @@
+// Embree 3 scene for the flattened triangle mesh.
+#include "baker/render/accel.h"
+
+#include <stdexcept>
+#include <string>
+
+#include <embree3/rtcore.h>
+
+namespace nrad {
+
+struct Accel::Impl {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    ~Impl() {
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+};
+
+namespace {
+
+void errorCallback(void*, RTCError code, const char* message) {
+    (void)code;
+    (void)message;  // errors are checked with rtcGetDeviceError where they matter
+}
+
+inline void initRay(RTCRay& ray, const glm::vec3& o, const glm::vec3& d, float tfar) {
+    ray.org_x = o.x;
+    ray.org_y = o.y;
+    ray.org_z = o.z;
+    ray.dir_x = d.x;
+    ray.dir_y = d.y;
+    ray.dir_z = d.z;
+    ray.tnear = 0.0f;
+    ray.tfar = tfar;
+    ray.time = 0.0f;
+    ray.mask = 0xFFFFFFFFu;  // Debian's Embree is built with ray masks: a zero mask misses everything
+    ray.id = 0;
+    ray.flags = 0;
+}
+
+}  // namespace
+
+Accel::Accel(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+    impl_->device = rtcNewDevice(nullptr);
+    if (!impl_->device) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    rtcSetDeviceErrorFunction(impl_->device, errorCallback, nullptr);
+    impl_->scene = rtcNewScene(impl_->device);
+    rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+    if (!mesh.triangles.empty()) {
+        RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        // Embree reads vertex buffers 16 bytes at a time: allocate one padding vertex at the end.
+        auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+            geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size() + 1));
+        auto* indices = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), mesh.triangles.size()));
+        if (!vertices || !indices) throw std::runtime_error("Embree: cannot allocate geometry buffers");
+        for (size_t i = 0; i < mesh.positions.size(); ++i) {
+            vertices[3 * i + 0] = mesh.positions[i].x;
+            vertices[3 * i + 1] = mesh.positions[i].y;
+            vertices[3 * i + 2] = mesh.positions[i].z;
+        }
+        vertices[3 * mesh.positions.size() + 0] = vertices[3 * mesh.positions.size() + 1] = vertices[3 * mesh.positions.size() + 2] = 0.0f;
+        for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+            indices[3 * t + 0] = mesh.triangles[t].x;
+            indices[3 * t + 1] = mesh.triangles[t].y;
+            indices[3 * t + 2] = mesh.triangles[t].z;
+        }
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(impl_->scene, geom, 0);
+        rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(impl_->scene);
+    RTCError err = rtcGetDeviceError(impl_->device);
+    if (err != RTC_ERROR_NONE) throw std::runtime_error("Embree: scene build failed (error " + std::to_string(int(err)) + ")");
+}
+
+Accel::~Accel() = default;
+
+Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float tfar) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    initRay(rh.ray, origin, direction, tfar);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(impl_->scene, &context, &rh);
+    Hit hit;
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        hit.t = rh.ray.tfar;
+        hit.triangle = rh.hit.primID;
+        hit.u = rh.hit.u;
+        hit.v = rh.hit.v;
+    }
+    return hit;
+}
+
+bool Accel::occluded(const glm::vec3& origin, const glm::vec3& direction, float tfar) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay ray;
+    initRay(ray, origin, direction, tfar);
+    rtcOccluded1(impl_->scene, &context, &ray);
+    return ray.tfar < 0.0f;  // Embree marks an occluded ray with tfar = -inf
+}
+
+size_t Accel::traceRaw(const RecordedRay* rays, size_t count) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    size_t hits = 0;
+    for (size_t i = 0; i < count; ++i) {
+        const RecordedRay& r = rays[i];
+        if (r.shadow) {
+            RTCRay ray;
+            initRay(ray, r.origin, r.direction, r.tfar);
+            rtcOccluded1(impl_->scene, &context, &ray);
+            hits += ray.tfar < 0.0f;
+        } else {
+            RTCRayHit rh;
+            initRay(rh.ray, r.origin, r.direction, r.tfar);
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(impl_->scene, &context, &rh);
+            hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+        }
+    }
+    return hits;
+}
+
+}  // namespace nrad

@@ -1,0 +1,53 @@
+// Accel: ray queries against the scene's triangles. The only module that sees Embree; the rest of the
+// code uses these project types.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct Hit {
+    float t = std::numeric_limits<float>::infinity();
+    uint32_t triangle = UINT32_MAX;
+    float u = 0.0f, v = 0.0f;  // barycentrics of vertices 1 and 2
+    bool valid() const { return triangle != UINT32_MAX; }
+};
+
+// A ray as the path tracer issued it, for replaying the same distribution in benchmarks.
+struct RecordedRay {
+    glm::vec3 origin;
+    glm::vec3 direction;
+    float tfar;
+    bool shadow;
+};
+
+class Accel {
+public:
+    explicit Accel(const TriangleMesh& mesh);
+    ~Accel();
+    Accel(const Accel&) = delete;
+    Accel& operator=(const Accel&) = delete;
+
+    // Closest hit along origin + t * direction for t in [0, tfar).
+    Hit intersect(const glm::vec3& origin, const glm::vec3& direction,
+                  float tfar = std::numeric_limits<float>::infinity()) const;
+    // True if anything blocks the segment [0, tfar).
+    bool occluded(const glm::vec3& origin, const glm::vec3& direction, float tfar) const;
+
+    // Replays recorded rays through plain rtcIntersect1 / rtcOccluded1 and returns the number of hits:
+    // the raw Embree throughput baseline the path tracer is measured against.
+    size_t traceRaw(const RecordedRay* rays, size_t count) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace nrad

@@ -1,0 +1,157 @@
+// glTF metallic-roughness BSDF: evaluation, pdf and importance sampling.
+#include "baker/render/bsdf.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace nrad {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979323846f;
+
+float maxComponent(const glm::vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+float pow5(float x) {
+    float x2 = x * x;
+    return x2 * x2 * x;
+}
+
+// Heitz 2018, "Sampling the GGX Distribution of Visible Normals", isotropic alpha.
+glm::vec3 sampleVisibleNormal(const glm::vec3& wo, float alpha, const glm::vec2& u) {
+    glm::vec3 vh = glm::normalize(glm::vec3(alpha * wo.x, alpha * wo.y, wo.z));
+    float lensq = vh.x * vh.x + vh.y * vh.y;
+    glm::vec3 t1 = lensq > 0.0f ? glm::vec3(-vh.y, vh.x, 0.0f) / std::sqrt(lensq) : glm::vec3(1.0f, 0.0f, 0.0f);
+    glm::vec3 t2 = glm::cross(vh, t1);
+    float r = std::sqrt(u.x);
+    float phi = 2.0f * kPi * u.y;
+    float p1 = r * std::cos(phi);
+    float p2 = r * std::sin(phi);
+    float s = 0.5f * (1.0f + vh.z);
+    p2 = (1.0f - s) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + s * p2;
+    glm::vec3 nh = p1 * t1 + p2 * t2 + std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh;
+    return glm::normalize(glm::vec3(alpha * nh.x, alpha * nh.y, std::max(1e-7f, nh.z)));
+}
+
+}  // namespace
+
+Frame Frame::fromNormal(const glm::vec3& n) {
+    // Duff et al. 2017, "Building an Orthonormal Basis, Revisited".
+    float sign = std::copysign(1.0f, n.z);
+    float a = -1.0f / (sign + n.z);
+    float b = n.x * n.y * a;
+    return {glm::vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), glm::vec3(b, sign + n.y * n.y * a, -n.y), n};
+}
+
+float Bsdf::ggxD(float cosThetaH, float alpha) {
+    if (cosThetaH <= 0.0f) return 0.0f;
+    float a2 = alpha * alpha;
+    float d = cosThetaH * cosThetaH * (a2 - 1.0f) + 1.0f;
+    return a2 / (kPi * d * d);
+}
+
+float Bsdf::ggxLambda(float cosTheta, float alpha) {
+    float c2 = cosTheta * cosTheta;
+    if (c2 <= 0.0f) return 0.0f;
+    float tan2 = std::max(0.0f, 1.0f - c2) / c2;
+    return 0.5f * (std::sqrt(1.0f + alpha * alpha * tan2) - 1.0f);
+}
+
+Bsdf::Bsdf(const Frame& shading, const BsdfParams& params) : frame_(shading), p_(params) {
+    alpha_ = std::max(p_.roughness * p_.roughness, kMinAlpha);
+    float f0 = (p_.ior - 1.0f) / (p_.ior + 1.0f);
+    dielectricF0_ = glm::min(glm::vec3(f0 * f0) * p_.specularColor, glm::vec3(1.0f));
+}
+
+float Bsdf::specularProbability(float cosThetaO) const {
+    // Expected weight of each lobe at this viewing angle (Fresnel at the macro normal).
+    float fresnel = maxComponent(dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * pow5(1.0f - cosThetaO));
+    float wSpec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
+    float baseLum = 0.2126f * p_.baseColor.x + 0.7152f * p_.baseColor.y + 0.0722f * p_.baseColor.z;
+    float wDiff = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
+    if (wSpec <= 0.0f) return 0.0f;
+    if (wDiff <= 0.0f) return 1.0f;
+    return wSpec / (wSpec + wDiff);
+}
+
+glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wi) const {
+    if (wo.z <= 0.0f || wi.z <= 0.0f) return glm::vec3(0.0f);
+    glm::vec3 h = wo + wi;
+    float hl = glm::length(h);
+    if (!(hl > 0.0f)) return glm::vec3(0.0f);
+    h /= hl;
+    float vdoth = std::clamp(glm::dot(wo, h), 0.0f, 1.0f);
+    float schlick = pow5(1.0f - vdoth);
+    // Specular microfacet term: D * V with the height-correlated Smith G2.
+    float g2 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_) + ggxLambda(wi.z, alpha_));
+    float specular = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
+    glm::vec3 diffuse = p_.baseColor / kPi;
+    // Dielectric: fresnel_mix(specularColor, ior, weight = specular, base = diffuse, layer = specular).
+    glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
+    glm::vec3 dielectric = (1.0f - p_.specular * maxComponent(fr)) * diffuse + p_.specular * fr * specular;
+    // Metal: conductor Fresnel with f0 = baseColor.
+    glm::vec3 metal = (p_.baseColor + (glm::vec3(1.0f) - p_.baseColor) * schlick) * specular;
+    return (1.0f - p_.metallic) * dielectric + p_.metallic * metal;
+}
+
+float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const {
+    if (wo.z <= 0.0f || wi.z <= 0.0f) return 0.0f;
+    float pSpec = specularProbability(wo.z);
+    float pdf = (1.0f - pSpec) * wi.z / kPi;
+    if (pSpec > 0.0f) {
+        glm::vec3 h = glm::normalize(wo + wi);
+        float odoth = glm::dot(wo, h);
+        if (odoth > 0.0f) {
+            // Visible-normal pdf transformed to the reflected direction: G1(wo) D(h) / (4 wo.z).
+            float g1 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_));
+            pdf += pSpec * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
+        }
+    }
+    return pdf;
+}
+
+glm::vec3 Bsdf::eval(const glm::vec3& wo, const glm::vec3& wi) const {
+    return evalLocal(frame_.toLocal(wo), frame_.toLocal(wi));
+}
+
+float Bsdf::pdf(const glm::vec3& wo, const glm::vec3& wi) const {
+    return pdfLocal(frame_.toLocal(wo), frame_.toLocal(wi));
+}
+
+BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& u) const {
+    glm::vec3 wo = frame_.toLocal(woWorld);
+    BsdfSample s;
+    if (wo.z <= 0.0f) return s;
+    float pSpec = specularProbability(wo.z);
+    glm::vec3 wi;
+    if (uLobe < pSpec) {
+        glm::vec3 h = sampleVisibleNormal(wo, alpha_, u);
+        wi = glm::reflect(-wo, h);
+    } else {
+        // Cosine-weighted hemisphere (concentric disk mapping).
+        glm::vec2 d = 2.0f * u - glm::vec2(1.0f);
+        float r, phi;
+        if (d.x == 0.0f && d.y == 0.0f) {
+            r = 0.0f;
+            phi = 0.0f;
+        } else if (std::abs(d.x) > std::abs(d.y)) {
+            r = d.x;
+            phi = (kPi / 4.0f) * (d.y / d.x);
+        } else {
+            r = d.y;
+            phi = (kPi / 2.0f) - (kPi / 4.0f) * (d.x / d.y);
+        }
+        float x = r * std::cos(phi), y = r * std::sin(phi);
+        wi = glm::vec3(x, y, std::sqrt(std::max(0.0f, 1.0f - x * x - y * y)));
+    }
+    if (wi.z <= 0.0f) return s;
+    s.pdf = pdfLocal(wo, wi);
+    if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf)) {
+        s.pdf = 0.0f;
+        return s;
+    }
+    s.f = evalLocal(wo, wi);
+    s.wi = frame_.toWorld(wi);
+    return s;
+}
+
+}  // namespace nrad

@@ -1,0 +1,68 @@
+// BSDF of the glTF 2.0 metallic-roughness material (specification appendix B, with
+// KHR_materials_specular): Lambertian diffuse plus a GGX (Trowbridge-Reitz) specular lobe with the
+// height-correlated Smith masking term, Schlick Fresnel, mixed by metallic. Sampling picks the diffuse
+// lobe (cosine) or the specular lobe (visible-normal sampling, Heitz 2018) and reports the pdf of the
+// mixture, so eval, sample and pdf are consistent with each other.
+#pragma once
+
+#include <glm/glm.hpp>
+
+namespace nrad {
+
+// Orthonormal frame around a unit normal; toLocal maps the normal to +Z.
+struct Frame {
+    glm::vec3 s, t, n;
+    static Frame fromNormal(const glm::vec3& n);
+    glm::vec3 toLocal(const glm::vec3& v) const { return {glm::dot(v, s), glm::dot(v, t), glm::dot(v, n)}; }
+    glm::vec3 toWorld(const glm::vec3& v) const { return s * v.x + t * v.y + n * v.z; }
+};
+
+struct BsdfParams {
+    glm::vec3 baseColor{1.0f};
+    float metallic = 0.0f;
+    float roughness = 1.0f;
+    float specular = 1.0f;
+    glm::vec3 specularColor{1.0f};
+    float ior = 1.5f;
+};
+
+struct BsdfSample {
+    glm::vec3 wi{0.0f};  // world space, away from the surface
+    glm::vec3 f{0.0f};  // BSDF value (without the cosine)
+    float pdf = 0.0f;  // solid-angle pdf of the whole mixture
+    bool valid() const { return pdf > 0.0f; }
+};
+
+class Bsdf {
+public:
+    // Smallest GGX alpha used (roughness 0 is a near-perfect mirror, kept finite).
+    static constexpr float kMinAlpha = 1e-3f;
+
+    Bsdf(const Frame& shading, const BsdfParams& params);
+
+    // All directions are world-space unit vectors pointing away from the surface. Only reflection:
+    // directions below the shading hemisphere give zero.
+    glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi) const;
+    float pdf(const glm::vec3& wo, const glm::vec3& wi) const;
+    // uLobe picks the lobe, u picks the direction.
+    BsdfSample sample(const glm::vec3& wo, float uLobe, const glm::vec2& u) const;
+
+    const Frame& frame() const { return frame_; }
+    float alpha() const { return alpha_; }
+
+    // Local-frame pieces, exposed for tests.
+    float specularProbability(float cosThetaO) const;
+    static float ggxD(float cosThetaH, float alpha);
+    static float ggxLambda(float cosTheta, float alpha);
+
+private:
+    glm::vec3 evalLocal(const glm::vec3& wo, const glm::vec3& wi) const;
+    float pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const;
+
+    Frame frame_;
+    BsdfParams p_;
+    float alpha_;
+    glm::vec3 dielectricF0_;  // min(f0(ior) * specularColor, 1)
+};
+
+}  // namespace nrad

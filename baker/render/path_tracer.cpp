@@ -1,0 +1,174 @@
+// Path tracing with NEE + MIS and Russian roulette.
+#include "baker/render/path_tracer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+
+#include <tbb/parallel_for.h>
+
+#include "baker/render/bsdf.h"
+#include "baker/render/camera.h"
+#include "baker/render/surface.h"
+
+namespace nrad {
+
+namespace {
+
+inline float powerHeuristic(float fPdf, float gPdf) {
+    float f2 = fPdf * fPdf, g2 = gPdf * gPdf;
+    if (std::isinf(f2)) return 1.0f;
+    return f2 + g2 > 0.0f ? f2 / (f2 + g2) : 0.0f;
+}
+
+inline bool isBlack(const glm::vec3& v) { return v.x <= 0.0f && v.y <= 0.0f && v.z <= 0.0f; }
+inline bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+inline float maxComponent(const glm::vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+
+// Russian roulette starts after this many segments.
+constexpr int kRouletteStart = 3;
+
+}  // namespace
+
+glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
+                               RayCounters& counters, std::vector<RecordedRay>* record) const {
+    glm::vec3 L(0.0f), beta(1.0f);
+    float prevBsdfPdf = 0.0f;
+    glm::vec3 prevP(0.0f);
+    for (int depth = 0;; ++depth) {  // depth = segments traced before this one
+        if (depth == 0)
+            ++counters.primary;
+        else
+            ++counters.extension;
+        if (record) record->push_back({origin, direction, std::numeric_limits<float>::infinity(), false});
+        Hit hit = accel_.intersect(origin, direction);
+        if (!hit.valid()) break;
+        SurfaceInteraction si = makeInteraction(scene_, hit, direction);
+
+        if (!isBlack(si.emission)) {
+            if (depth == 0) {
+                L += beta * si.emission;
+            } else {
+                float lightPdf = lights_.pdfTriangle(si.triangle, prevP, si.p, si.ng);
+                L += beta * si.emission * powerHeuristic(prevBsdfPdf, lightPdf);
+            }
+        }
+        if (maxDepth > 0 && depth + 1 >= maxDepth) break;
+
+        Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
+        // The sampler's dimensions are consumed in the same order at every vertex.
+        float uPick = sampler.get1D();
+        glm::vec2 uLight = sampler.get2D();
+        float uLobe = sampler.get1D();
+        glm::vec2 uBsdf = sampler.get2D();
+        float uRoulette = sampler.get1D();
+
+        // Next event estimation.
+        if (!lights_.empty()) {
+            LightSample ls = lights_.sample(si.p, uPick, uLight);
+            if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {
+                glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
+                if (!isBlack(f)) {
+                    glm::vec3 o = si.spawnOrigin(ls.wi);
+                    float tfar = std::numeric_limits<float>::infinity();
+                    if (std::isfinite(ls.distance)) {
+                        // Stop short of the light's own surface.
+                        tfar = glm::length(ls.lightPoint - o) * (1.0f - 1e-4f) - rayOffset(ls.lightPoint);
+                    }
+                    ++counters.shadow;
+                    if (record) record->push_back({o, ls.wi, tfar, true});
+                    if (tfar > 0.0f && !accel_.occluded(o, ls.wi, tfar)) {
+                        float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(si.wo, ls.wi));
+                        L += beta * f * ls.Li * (w / ls.pdf);
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        BsdfSample bs = bsdf.sample(si.wo, uLobe, uBsdf);
+        if (!bs.valid() || glm::dot(bs.wi, si.ng) <= 0.0f) break;
+        beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
+        if (isBlack(beta) || !isFinite(beta)) break;
+        prevBsdfPdf = bs.pdf;
+        prevP = si.p;
+        if (depth + 1 >= kRouletteStart) {
+            float q = std::min(1.0f, maxComponent(beta));
+            if (uRoulette >= q) break;
+            beta /= q;
+        }
+        origin = si.spawnOrigin(bs.wi);
+        direction = bs.wi;
+    }
+    return L;
+}
+
+Image PathTracer::render(const Camera& camera, const RenderSettings& settings, RenderStats* stats,
+                         const std::function<void(double)>& progress) const {
+    auto start = std::chrono::steady_clock::now();
+    Image image(settings.width, settings.height);
+    CameraRays rays(camera, settings.width, settings.height);
+    const int ts = std::max(1, settings.tileSize);
+    const int tilesX = (settings.width + ts - 1) / ts, tilesY = (settings.height + ts - 1) / ts;
+    const int tileCount = tilesX * tilesY;
+    std::mutex statsMutex;
+    RayCounters total;
+    std::atomic<int> tilesDone{0};
+
+    tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
+        RayCounters counters;
+        for (int tile = range.begin(); tile != range.end(); ++tile) {
+            int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
+            int x1 = std::min(x0 + ts, settings.width), y1 = std::min(y0 + ts, settings.height);
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x) {
+                    uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
+                    glm::dvec3 sum(0.0);
+                    for (int s = 0; s < settings.spp; ++s) {
+                        Sampler sampler(stream, uint32_t(s));
+                        glm::vec2 jitter = sampler.get2D();
+                        glm::vec3 o, d;
+                        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                        glm::vec3 L = radiance(o, d, sampler, settings.maxDepth, counters);
+                        if (isFinite(L))
+                            sum += glm::dvec3(L);
+                        else
+                            ++counters.nonFiniteSamples;
+                    }
+                    image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
+                }
+            int done = ++tilesDone;
+            if (progress) progress(double(done) / double(tileCount));
+        }
+        std::lock_guard<std::mutex> lock(statsMutex);
+        total += counters;
+    }, tbb::simple_partitioner());
+
+    if (stats) {
+        stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        stats->samples = uint64_t(settings.width) * uint64_t(settings.height) * uint64_t(std::max(0, settings.spp));
+        stats->rays = total;
+    }
+    return image;
+}
+
+std::vector<RecordedRay> PathTracer::recordRays(const Camera& camera, const RenderSettings& settings) const {
+    std::vector<RecordedRay> out;
+    CameraRays rays(camera, settings.width, settings.height);
+    RayCounters counters;
+    for (int y = 0; y < settings.height; ++y)
+        for (int x = 0; x < settings.width; ++x) {
+            uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
+            for (int s = 0; s < settings.spp; ++s) {
+                Sampler sampler(stream, uint32_t(s));
+                glm::vec2 jitter = sampler.get2D();
+                glm::vec3 o, d;
+                rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                radiance(o, d, sampler, settings.maxDepth, counters, &out);
+            }
+        }
+    return out;
+}
+
+}  // namespace nrad

@@ -1,0 +1,79 @@
+// PathTracer: unbiased Monte Carlo estimates of L(h(o, d), -d), the radiance arriving along a ray.
+// Next event estimation over all lights (picked by power) combined with BSDF sampling by multiple
+// importance sampling (power heuristic), Russian roulette, an optional maximum path length, no clamping.
+// Images are rendered over tiles with TBB; every sample depends only on (pixel, sample index, seed), so
+// the image is byte-identical for any number of threads.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "baker/render/accel.h"
+#include "baker/render/image_io.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/sampler.h"
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct RayCounters {
+    uint64_t primary = 0;  // camera rays
+    uint64_t extension = 0;  // closest-hit rays after the first
+    uint64_t shadow = 0;  // occlusion rays
+    uint64_t nonFiniteSamples = 0;  // samples dropped because the estimate was NaN or Inf
+    uint64_t total() const { return primary + extension + shadow; }
+    RayCounters& operator+=(const RayCounters& o) {
+        primary += o.primary;
+        extension += o.extension;
+        shadow += o.shadow;
+        nonFiniteSamples += o.nonFiniteSamples;
+        return *this;
+    }
+};
+
+struct RenderSettings {
+    int width = 512;
+    int height = 512;
+    int spp = 64;
+    int maxDepth = 0;  // maximum number of path segments (1 = emission seen directly); 0 = unbounded
+    uint32_t seed = 0;
+    int tileSize = 16;
+};
+
+struct RenderStats {
+    double seconds = 0.0;
+    uint64_t samples = 0;
+    RayCounters rays;
+    double raysPerSecond() const { return seconds > 0.0 ? double(rays.total()) / seconds : 0.0; }
+};
+
+class PathTracer {
+public:
+    PathTracer(const Scene& scene, const Accel& accel, const LightSampler& lights)
+        : scene_(scene), accel_(accel), lights_(lights) {}
+
+    // One estimate of the radiance arriving at `origin` from direction `direction` (i.e. leaving the
+    // first surface hit towards origin). maxDepth counts path segments including this first ray.
+    // If `record` is given, every ray traced is appended to it (benchmarks).
+    glm::vec3 radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth, RayCounters& counters,
+                       std::vector<RecordedRay>* record = nullptr) const;
+
+    // Renders an image; progress(fraction) is called from worker threads as tiles finish.
+    Image render(const Camera& camera, const RenderSettings& settings, RenderStats* stats = nullptr,
+                 const std::function<void(double)>& progress = {}) const;
+
+    // The camera rays and all secondary rays of the first `maxSamples` samples of a render, in the order the
+    // tracer issued them (benchmarks).
+    std::vector<RecordedRay> recordRays(const Camera& camera, const RenderSettings& settings) const;
+
+private:
+    const Scene& scene_;
+    const Accel& accel_;
+    const LightSampler& lights_;
+};
+
+}  // namespace nrad

@@ -1,0 +1,124 @@
+// Scene: the project's own, library-free description of what the baker renders. Everything is flattened
+// into world space (instances expanded), so renderers never see glTF or its node hierarchy.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "baker/scene/texture.h"
+
+namespace nrad {
+
+struct Bounds3 {
+    glm::vec3 lower{std::numeric_limits<float>::infinity()};
+    glm::vec3 upper{-std::numeric_limits<float>::infinity()};
+
+    void extend(const glm::vec3& p) {
+        lower = glm::min(lower, p);
+        upper = glm::max(upper, p);
+    }
+    bool empty() const { return !(lower.x <= upper.x && lower.y <= upper.y && lower.z <= upper.z); }
+    glm::vec3 center() const { return 0.5f * (lower + upper); }
+    glm::vec3 extent() const { return upper - lower; }
+    // Radius of the bounding sphere around center().
+    float radius() const { return empty() ? 0.0f : 0.5f * glm::length(extent()); }
+};
+
+// A reference to a texture from a material slot, with the UV set it reads.
+struct TextureRef {
+    int texture = -1;  // index into Scene::textures, -1 = none
+    int texCoord = 0;  // 0 or 1
+    bool valid() const { return texture >= 0; }
+};
+
+// glTF 2.0 metallic-roughness material (plus KHR_materials_emissive_strength and KHR_materials_specular).
+struct Material {
+    std::string name;
+    glm::vec3 baseColor{1.0f};  // linear RGB
+    TextureRef baseColorTexture;  // sRGB-decoded on load
+    float metallic = 1.0f;
+    float roughness = 1.0f;  // perceptual roughness; GGX alpha = roughness^2
+    TextureRef metallicRoughnessTexture;  // G = roughness, B = metallic (linear)
+    glm::vec3 emission{0.0f};  // emissiveFactor x emissive_strength: radiance in scene units
+    TextureRef emissiveTexture;  // sRGB-decoded
+    float specular = 1.0f;  // KHR_materials_specular specularFactor (0 = pure Lambertian dielectric)
+    glm::vec3 specularColor{1.0f};  // KHR_materials_specular specularColorFactor
+    float ior = 1.5f;
+    bool doubleSided = false;
+
+    bool emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
+};
+
+// Photometric glTF lights, already converted to radiometric quantities (see docs/lights.md).
+struct PunctualLight {
+    enum class Type { Point, Spot, Directional };
+    Type type = Type::Point;
+    std::string name;
+    glm::vec3 position{0.0f};  // world space (point, spot)
+    glm::vec3 direction{0.0f, 0.0f, -1.0f};  // world space, the direction light travels (spot, directional)
+    // Point/spot: radiant intensity [W/sr]. Directional: irradiance on a perpendicular surface [W/m^2].
+    glm::vec3 intensity{0.0f};
+    float cosInnerCone = 1.0f;  // spot only
+    float cosOuterCone = 0.0f;  // spot only
+};
+
+struct Camera {
+    enum class Type { Perspective, Orthographic };
+    Type type = Type::Perspective;
+    std::string name;
+    glm::vec3 position{0.0f};
+    glm::mat3 worldFromCamera{1.0f};  // columns: right, up, backwards (the camera looks down -Z)
+    float yfov = 0.7854f;  // perspective, radians
+    float aspectRatio = 0.0f;  // 0 = take it from the image size
+    float xmag = 1.0f, ymag = 1.0f;  // orthographic half extents
+};
+
+// Flattened triangle geometry in world space. Vertices are per instance (no sharing across instances).
+struct TriangleMesh {
+    std::vector<glm::vec3> positions;
+    std::vector<glm::vec3> normals;  // unit length, one per vertex
+    std::vector<glm::vec2> uv0, uv1;  // one per vertex (zero when the primitive had none)
+    std::vector<glm::uvec3> triangles;  // indices into the vertex arrays
+    std::vector<uint32_t> materialIds;  // one per triangle, index into Scene::materials
+
+    size_t triangleCount() const { return triangles.size(); }
+    float triangleArea(size_t t) const;
+    glm::vec3 geometricNormal(size_t t) const;  // unit, from the winding order
+};
+
+// What the importer did, for the user and for tests.
+struct ImportStats {
+    size_t nodesVisited = 0;
+    size_t meshInstances = 0;
+    size_t primitives = 0;
+    size_t trianglesRead = 0;  // before dropping degenerate ones
+    size_t degenerateTrianglesDropped = 0;
+    size_t primitivesWithGeneratedNormals = 0;
+    size_t primitivesSkipped = 0;  // points and lines: nothing to render
+    size_t dracoPrimitives = 0;
+    std::vector<std::string> warnings;
+};
+
+struct Scene {
+    std::string sourcePath;
+    TriangleMesh mesh;
+    std::vector<Material> materials;  // never empty after import (a default material is added if needed)
+    std::vector<Texture> textures;
+    std::vector<PunctualLight> lights;
+    std::vector<Camera> cameras;
+    Bounds3 bounds;
+    ImportStats stats;
+
+    // Recomputes bounds from the mesh and the positional lights.
+    void updateBounds();
+    size_t emissiveTriangleCount() const;
+};
+
+// Builds a camera that frames the whole scene from +Z looking down -Z (used when the scene has none).
+Camera frameBounds(const Bounds3& bounds, float yfov = 0.6911f);
+
+}  // namespace nrad
