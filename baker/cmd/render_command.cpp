@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "baker/cmd/commands.h"
 #include "baker/render/accel.h"
@@ -20,7 +21,7 @@ namespace {
 
 struct RenderOptions {
     std::string scene;
-    std::string output;
+    std::vector<std::string> outputs;
     int spp = 64;
     int width = 0;
     int height = 0;
@@ -43,10 +44,11 @@ void printImportSummary(const Scene& scene) {
 }
 
 int runRender(const RenderOptions& o) {
-    if (!isSupportedImagePath(o.output)) {
-        std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", o.output.c_str());
-        return kExitUsage;
-    }
+    for (const std::string& out : o.outputs)
+        if (!isSupportedImagePath(out)) {
+            std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", out.c_str());
+            return kExitUsage;
+        }
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
@@ -94,7 +96,7 @@ int runRender(const RenderOptions& o) {
     RenderStats stats;
     Image image = tracer.render(camera, settings, &stats, [&](double f) { bar.update(f); });
     try {
-        writeImage(o.output, image, o.exposure);
+        for (const std::string& out : o.outputs) writeImage(out, image, o.exposure);
     } catch (const IoError& e) {
         std::fprintf(stderr, "nrad render: %s\n", e.what());
         return kExitIo;
@@ -106,7 +108,7 @@ int runRender(const RenderOptions& o) {
                 settings.maxDepth ? std::to_string(settings.maxDepth).c_str() : "unbounded", stats.seconds, setup,
                 double(stats.samples), stats.raysPerSecond() * 1e-6, (unsigned long long)stats.rays.primary,
                 (unsigned long long)stats.rays.extension, (unsigned long long)stats.rays.shadow,
-                (unsigned long long)stats.rays.nonFiniteSamples, o.output.c_str());
+                (unsigned long long)stats.rays.nonFiniteSamples, CLI::detail::join(o.outputs, ", ").c_str());
     return kExitOk;
 }
 
@@ -116,7 +118,9 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     auto opts = std::make_shared<RenderOptions>();
     CLI::App* cmd = app.add_subcommand("render", "Path trace a reference image of a glTF scene");
     cmd->add_option("scene", opts->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
-    cmd->add_option("-o,--output", opts->output, "Output image: .exr (linear float) or .png (sRGB)")->required();
+    cmd->add_option("-o,--output", opts->outputs, "Output image: .exr (linear float) or .png (sRGB); repeat for several")
+        ->required()
+        ->allow_extra_args(false);
     cmd->add_option("--spp", opts->spp, "Samples per pixel")->check(CLI::Range(1, 1 << 24));
     cmd->add_option("--width", opts->width, "Image width (default 512, or from --height and the camera aspect)")
         ->check(CLI::Range(1, 1 << 15));

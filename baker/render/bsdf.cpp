@@ -62,9 +62,13 @@ Bsdf::Bsdf(const Frame& shading, const BsdfParams& params) : frame_(shading), p_
     dielectricF0_ = glm::min(glm::vec3(f0 * f0) * p_.specularColor, glm::vec3(1.0f));
 }
 
+float Bsdf::macroFresnel(float cosTheta) const {
+    return maxComponent(dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * pow5(1.0f - cosTheta));
+}
+
 float Bsdf::specularProbability(float cosThetaO) const {
     // Expected weight of each lobe at this viewing angle (Fresnel at the macro normal).
-    float fresnel = maxComponent(dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * pow5(1.0f - cosThetaO));
+    float fresnel = macroFresnel(cosThetaO);
     float wSpec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
     float baseLum = 0.2126f * p_.baseColor.x + 0.7152f * p_.baseColor.y + 0.0722f * p_.baseColor.z;
     float wDiff = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
@@ -85,9 +89,14 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wi) const {
     float g2 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_) + ggxLambda(wi.z, alpha_));
     float specular = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
     glm::vec3 diffuse = p_.baseColor / kPi;
-    // Dielectric: fresnel_mix(specularColor, ior, weight = specular, base = diffuse, layer = specular).
+    // Dielectric: the specular layer weighted by fresnel_mix's Schlick term at the microfacet normal, as in
+    // appendix B. The diffuse base is weighted by what the layer transmits in *both* directions,
+    // (1 - s F(n.wo)) (1 - s F(n.wi)), instead of appendix B's 1 - s F(wo.h): the latter gains up to 40%
+    // energy for a white base at grazing view (tests/baker/render/bsdf_test.cpp); this form is reciprocal
+    // and keeps the albedo at most one. Appendix B is informative, so both are within the specification.
     glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
-    glm::vec3 dielectric = (1.0f - p_.specular * maxComponent(fr)) * diffuse + p_.specular * fr * specular;
+    float transmitted = (1.0f - p_.specular * macroFresnel(wo.z)) * (1.0f - p_.specular * macroFresnel(wi.z));
+    glm::vec3 dielectric = transmitted * diffuse + p_.specular * fr * specular;
     // Metal: conductor Fresnel with f0 = baseColor.
     glm::vec3 metal = (p_.baseColor + (glm::vec3(1.0f) - p_.baseColor) * schlick) * specular;
     return (1.0f - p_.metallic) * dielectric + p_.metallic * metal;

@@ -1,5 +1,6 @@
 // BSDF of the glTF 2.0 metallic-roughness material (specification appendix B, with
-// KHR_materials_specular): Lambertian diffuse plus a GGX (Trowbridge-Reitz) specular lobe with the
+// KHR_materials_specular; one documented deviation in the dielectric's diffuse weight, see bsdf.cpp and
+// docs/rendering.md): Lambertian diffuse plus a GGX (Trowbridge-Reitz) specular lobe with the
 // height-correlated Smith masking term, Schlick Fresnel, mixed by metallic. Sampling picks the diffuse
 // lobe (cosine) or the specular lobe (visible-normal sampling, Heitz 2018) and reports the pdf of the
 // mixture, so eval, sample and pdf are consistent with each other.
@@ -52,6 +53,8 @@ public:
 
     // Local-frame pieces, exposed for tests.
     float specularProbability(float cosThetaO) const;
+    // Largest channel of the dielectric Schlick Fresnel at the macro normal.
+    float macroFresnel(float cosTheta) const;
     static float ggxD(float cosThetaH, float alpha);
     static float ggxLambda(float cosTheta, float alpha);
 

@@ -391,7 +391,7 @@ private:
         const tinygltf::Mesh& mesh = model_.meshes[size_t(meshIndex)];
         for (size_t p = 0; p < mesh.primitives.size(); ++p)
             importPrimitive(mesh.primitives[p], world,
-                            "mesh " + std::to_string(meshIndex) + " (" + mesh.name + ") primitive " + std::to_string(p));
+                            "mesh " + std::to_string(meshIndex) + (mesh.name.empty() ? std::string() : " (" + mesh.name + ")") + " primitive " + std::to_string(p));
     }
 
     void importPrimitive(const tinygltf::Primitive& prim, const glm::dmat4& world, const std::string& where) {

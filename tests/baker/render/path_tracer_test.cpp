@@ -1,0 +1,111 @@
+// Path tracer on real scenes: byte-identical images for 1 and 2 threads, every external scene renders
+// with finite pixels, and the bundled Cornell box's directly visible light has its stated radiance.
+#include <cmath>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+#include "baker/render/accel.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/path_tracer.h"
+#include "baker/scene/gltf_loader.h"
+#include "baker/util/threads.h"
+#include "support/test_paths.h"
+
+namespace nrad {
+namespace {
+
+Image render(const Scene& scene, const RenderSettings& s, RenderStats* stats = nullptr) {
+    Accel accel(scene.mesh);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];
+    return tracer.render(camera, s, stats);
+}
+
+TEST(PathTracer, ImageIsByteIdenticalForOneAndTwoThreads) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
+    RenderSettings s;
+    s.width = s.height = 40;
+    s.spp = 8;
+    s.seed = 42;
+    s.tileSize = 8;
+    Image one, two;
+    {
+        ThreadScope threads(1);
+        one = render(scene, s);
+    }
+    {
+        ThreadScope threads(2);
+        two = render(scene, s);
+    }
+    ASSERT_EQ(one.pixels.size(), two.pixels.size());
+    EXPECT_EQ(std::memcmp(one.pixels.data(), two.pixels.data(), one.pixels.size() * sizeof(glm::vec3)), 0);
+    // A different seed gives a different image (the seed is really used).
+    s.seed = 43;
+    Image other = render(scene, s);
+    EXPECT_NE(std::memcmp(one.pixels.data(), other.pixels.data(), one.pixels.size() * sizeof(glm::vec3)), 0);
+}
+
+TEST(PathTracer, PathLengthOneSeesOnlyTheLight) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    RenderSettings s;
+    s.width = s.height = 64;
+    s.spp = 1;
+    s.maxDepth = 1;
+    Image image = render(scene, s);
+    int lit = 0;
+    for (const glm::vec3& p : image.pixels) {
+        if (p.x > 0.0f) {
+            ++lit;
+            // The light's radiance is (17, 12, 4); a pixel sees it entirely or not at all at 1 spp.
+            EXPECT_FLOAT_EQ(p.x, 17.0f);
+            EXPECT_FLOAT_EQ(p.y, 12.0f);
+            EXPECT_FLOAT_EQ(p.z, 4.0f);
+        }
+    }
+    // The 130 x 105 mm light seen from the classic camera covers about 0.8% of the image.
+    EXPECT_GT(lit, 10);
+    EXPECT_LT(lit, 80);
+}
+
+struct ExternalRender {
+    const char* path;
+    bool lit;  // has emissive surfaces or punctual lights
+};
+
+class ExternalRenderTest : public ::testing::TestWithParam<ExternalRender> {};
+
+TEST_P(ExternalRenderTest, RendersWithFinitePixels) {
+    Scene scene = loadGltf(test::externalScene(GetParam().path));
+    RenderSettings s;
+    s.width = s.height = 32;
+    s.spp = 2;
+    RenderStats stats;
+    Image image = render(scene, s, &stats);
+    for (const glm::vec3& p : image.pixels)
+        for (int k = 0; k < 3; ++k) ASSERT_TRUE(std::isfinite(p[k]) && p[k] >= 0.0f);
+    EXPECT_EQ(stats.rays.nonFiniteSamples, 0u);
+    EXPECT_EQ(stats.rays.primary, 32u * 32u * 2u);
+    if (GetParam().lit)
+        EXPECT_GT(image.mean().x + image.mean().y + image.mean().z, 0.0);
+    else
+        EXPECT_EQ(image.mean().x, 0.0);  // no light sources, nothing to see
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedScenes, ExternalRenderTest,
+                         ::testing::Values(ExternalRender{"CornellBox/CornellBox.glb", true},
+                                           ExternalRender{"BoxDraco/glTF-Draco/Box.gltf", false},
+                                           ExternalRender{"AvocadoDraco/glTF-Draco/Avocado.gltf", false},
+                                           ExternalRender{"LightsPunctualLamp/glTF/LightsPunctualLamp.gltf", true},
+                                           ExternalRender{"EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf", true},
+                                           ExternalRender{"MetalRoughSpheresNoTextures/glTF/MetalRoughSpheresNoTextures.gltf", false},
+                                           ExternalRender{"Sauerbraten_zdm2/zdm2.glb", false}),
+                         [](const ::testing::TestParamInfo<ExternalRender>& info) {
+                             std::string name(info.param.path);
+                             name = name.substr(0, name.find('/'));
+                             return name;
+                         });
+
+}  // namespace
+}  // namespace nrad

@@ -1,0 +1,121 @@
+// The nrad executable: exit codes and messages for bad scenes and bad flags, no output file left behind,
+// and a successful render writing readable EXR and PNG files.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <sys/wait.h>
+
+#include "baker/render/image_io.h"
+#include "support/test_paths.h"
+
+namespace nrad {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+    int exitCode;
+    std::string output;  // stdout and stderr
+};
+
+RunResult run(const std::string& args) {
+    std::string cmd = "'" + test::nradExecutable() + "' " + args + " 2>&1";
+    FILE* pipe = popen(cmd.c_str(), "r");
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+    int status = pclose(pipe);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+bool noFilesIn(const std::string& dir) { return fs::is_empty(dir); }
+
+TEST(Cli, MalformedScenesExitThreeNamingTheFileAndWriteNothing) {
+    std::ifstream f(test::sourcePath("tests/data/malformed/corpus.json"));
+    nlohmann::json corpus = nlohmann::json::parse(f);
+    ASSERT_GE(corpus.size(), 10u);
+    for (auto& [name, expect] : corpus.items()) {
+        std::string dir = test::temporaryDirectory();
+        std::string scene = test::sourcePath("tests/data/malformed/" + name);
+        RunResult r = run("render '" + scene + "' -o '" + dir + "/out.exr' --spp 1 --width 8");
+        EXPECT_EQ(r.exitCode, 3) << name << ": " << r.output;
+        EXPECT_NE(r.output.find(scene), std::string::npos) << name << ": message does not name the file: " << r.output;
+        EXPECT_NE(r.output.find(expect.get<std::string>()), std::string::npos) << name << ": " << r.output;
+        EXPECT_TRUE(noFilesIn(dir)) << name;
+    }
+}
+
+TEST(Cli, TruncatedGlbIsRejected) {
+    std::string dir = test::temporaryDirectory();
+    std::ifstream in(test::externalScene("CornellBox/CornellBox.glb"), std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GT(bytes.size(), 1000u);
+    for (size_t keep : {size_t(10), size_t(100), bytes.size() / 2, bytes.size() - 1}) {
+        std::string path = dir + "/truncated-" + std::to_string(keep) + ".glb";
+        std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(keep));
+        RunResult r = run("render '" + path + "' -o '" + dir + "/out.png' --spp 1 --width 8");
+        EXPECT_EQ(r.exitCode, 3) << keep << ": " << r.output;
+        EXPECT_NE(r.output.find(path), std::string::npos) << r.output;
+        EXPECT_FALSE(fs::exists(dir + "/out.png"));
+    }
+}
+
+TEST(Cli, MissingSceneFile) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("render /nonexistent/x.gltf -o '" + dir + "/out.exr'");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("/nonexistent/x.gltf: cannot open file"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BadFlagsExitTwo) {
+    std::string dir = test::temporaryDirectory();
+    std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    std::string out = " -o '" + dir + "/out.exr'";
+    EXPECT_EQ(run("render " + scene + out + " --spp 0").exitCode, 2);
+    EXPECT_EQ(run("render " + scene + out + " --spp many").exitCode, 2);
+    EXPECT_EQ(run("render " + scene + out + " --width -3").exitCode, 2);
+    EXPECT_EQ(run("render " + scene + out + " --no-such-flag").exitCode, 2);
+    EXPECT_EQ(run("render " + scene).exitCode, 2);  // no output
+    EXPECT_EQ(run("").exitCode, 2);  // no subcommand
+    RunResult r = run("render " + scene + " -o '" + dir + "/out.jpg'");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_NE(r.output.find("out.jpg: unsupported output type"), std::string::npos) << r.output;
+    r = run("render " + scene + out + " --camera 3");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_NE(r.output.find("has 1 camera"), std::string::npos) << r.output;
+    EXPECT_TRUE(noFilesIn(dir));
+}
+
+TEST(Cli, UnwritableOutputExitsFour) {
+    std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    RunResult r = run("render " + scene + " -o /nonexistent-dir/out.exr --spp 1 --width 8 -q");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_NE(r.output.find("/nonexistent-dir/out.exr"), std::string::npos) << r.output;
+}
+
+TEST(Cli, RenderWritesExrAndPng) {
+    std::string dir = test::temporaryDirectory();
+    std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    RunResult r = run("render " + scene + " -o '" + dir + "/a.exr' -o '" + dir + "/a.png' --spp 2 --width 24 --seed 3");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("rendered"), std::string::npos);
+    EXPECT_NE(r.output.find("Mrays/s"), std::string::npos);
+    Image image = readExr(dir + "/a.exr");
+    EXPECT_EQ(image.width, 24);
+    EXPECT_EQ(image.height, 24);  // the camera's aspect ratio is 1
+    EXPECT_GT(image.mean().x, 0.0);
+    std::ifstream png(dir + "/a.png", std::ios::binary);
+    char magic[8] = {};
+    png.read(magic, 8);
+    EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+    // Only the two outputs: no temporary files left behind.
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
+}
+
+}  // namespace
+}  // namespace nrad

@@ -1,0 +1,78 @@
+// Analytic test scenes.
+#include "support/test_scenes.h"
+
+#include <cmath>
+
+namespace nrad::test {
+
+Scene makeSphereFurnace(const Material& material, float radius, int segments) {
+    Scene scene;
+    scene.sourcePath = "<sphere furnace>";
+    Material m = material;
+    m.doubleSided = true;
+    scene.materials.push_back(m);
+    const int rings = segments / 2;
+    const float pi = 3.14159265358979323846f;
+    TriangleMesh& mesh = scene.mesh;
+    // Poles are single vertices so the sphere is watertight.
+    auto addVertex = [&](const glm::vec3& n) {
+        mesh.positions.push_back(radius * n);
+        mesh.normals.push_back(n);
+        mesh.uv0.emplace_back(0.0f);
+        mesh.uv1.emplace_back(0.0f);
+        return uint32_t(mesh.positions.size() - 1);
+    };
+    uint32_t north = addVertex({0, 1, 0});
+    std::vector<uint32_t> ringStart;
+    for (int r = 1; r < rings; ++r) {
+        float theta = pi * float(r) / float(rings);
+        ringStart.push_back(uint32_t(mesh.positions.size()));
+        for (int s = 0; s < segments; ++s) {
+            float phi = 2.0f * pi * float(s) / float(segments);
+            addVertex({std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi)});
+        }
+    }
+    uint32_t south = addVertex({0, -1, 0});
+    auto idx = [&](int ring, int s) { return ringStart[size_t(ring)] + uint32_t(s % segments); };
+    for (int s = 0; s < segments; ++s) mesh.triangles.emplace_back(north, idx(0, s + 1), idx(0, s));
+    for (int r = 0; r + 1 < rings - 1; ++r)
+        for (int s = 0; s < segments; ++s) {
+            mesh.triangles.emplace_back(idx(r, s), idx(r, s + 1), idx(r + 1, s));
+            mesh.triangles.emplace_back(idx(r, s + 1), idx(r + 1, s + 1), idx(r + 1, s));
+        }
+    for (int s = 0; s < segments; ++s) mesh.triangles.emplace_back(south, idx(rings - 2, s), idx(rings - 2, s + 1));
+    mesh.materialIds.assign(mesh.triangles.size(), 0);
+    Camera camera;
+    camera.yfov = pi / 2.0f;
+    scene.cameras.push_back(camera);
+    scene.updateBounds();
+    return scene;
+}
+
+Scene makeLitPlane(float albedo, float halfSize) {
+    Scene scene;
+    scene.sourcePath = "<lit plane>";
+    Material m;
+    m.baseColor = glm::vec3(albedo);
+    m.metallic = 0.0f;
+    m.specular = 0.0f;
+    scene.materials.push_back(m);
+    TriangleMesh& mesh = scene.mesh;
+    for (glm::vec2 c : {glm::vec2(-1, -1), glm::vec2(1, -1), glm::vec2(1, 1), glm::vec2(-1, 1)}) {
+        mesh.positions.emplace_back(halfSize * c.x, halfSize * c.y, 0.0f);
+        mesh.normals.emplace_back(0, 0, 1);
+        mesh.uv0.emplace_back(0.0f);
+        mesh.uv1.emplace_back(0.0f);
+    }
+    mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+    mesh.materialIds = {0, 0};
+    Camera camera;
+    camera.type = Camera::Type::Orthographic;
+    camera.position = glm::vec3(0, 0, 5);
+    camera.xmag = camera.ymag = 1.0f;
+    scene.cameras.push_back(camera);
+    scene.updateBounds();
+    return scene;
+}
+
+}  // namespace nrad::test
