@@ -5,7 +5,7 @@
 
 namespace nrad::test {
 
-Scene makeSphereFurnace(const Material& material, float radius, int segments) {
+Scene makeSphereFurnace(const Material& material, float radius, int segments, bool smoothNormals) {
     Scene scene;
     scene.sourcePath = "<sphere furnace>";
     Material m = material;
@@ -41,6 +41,23 @@ Scene makeSphereFurnace(const Material& material, float radius, int segments) {
             mesh.triangles.emplace_back(idx(r, s + 1), idx(r + 1, s + 1), idx(r + 1, s));
         }
     for (int s = 0; s < segments; ++s) mesh.triangles.emplace_back(south, idx(rings - 2, s), idx(rings - 2, s + 1));
+    if (!smoothNormals) {
+        // Unshared vertices with the facet normal; positions are bit-identical copies, so the surface
+        // stays watertight for Embree.
+        TriangleMesh flat;
+        for (const glm::uvec3& t : mesh.triangles) {
+            glm::vec3 n = glm::normalize(glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]));
+            uint32_t first = uint32_t(flat.positions.size());
+            for (uint32_t v : {t.x, t.y, t.z}) {
+                flat.positions.push_back(mesh.positions[v]);
+                flat.normals.push_back(n);
+                flat.uv0.emplace_back(0.0f);
+                flat.uv1.emplace_back(0.0f);
+            }
+            flat.triangles.emplace_back(first, first + 1, first + 2);
+        }
+        mesh = std::move(flat);
+    }
     mesh.materialIds.assign(mesh.triangles.size(), 0);
     Camera camera;
     camera.yfov = pi / 2.0f;

@@ -5,9 +5,11 @@
 
 namespace nrad::test {
 
-// A closed UV sphere of radius `radius` around the origin with smooth radial normals, one double-sided
-// material `material`, and a camera at the centre looking down -Z with a 90-degree field of view.
-Scene makeSphereFurnace(const Material& material, float radius = 1.0f, int segments = 64);
+// A closed, watertight UV sphere of radius `radius` around the origin, one double-sided material
+// `material`, and a camera at the centre looking down -Z with a 90-degree field of view. Flat shading
+// normals by default: smooth vertex normals make cosine-sampled directions fall below the facets now and
+// then, which loses energy (about 0.03% per bounce at 64 segments, 3% of the radiance at albedo 0.99).
+Scene makeSphereFurnace(const Material& material, float radius = 1.0f, int segments = 64, bool smoothNormals = false);
 
 // A square Lambertian plane z = 0 of half-size `halfSize` (albedo `albedo`, specular 0) and an orthographic
 // camera above it looking straight down; lights are added by the caller.

@@ -62,8 +62,8 @@ TEST_P(DiffuseFurnace, RadianceIsLeOverOneMinusAlbedo) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Albedo, DiffuseFurnace, ::testing::Values(0.5f, 0.9f),
-                         [](const ::testing::TestParamInfo<float>& info) {
-                             return "a" + std::to_string(int(std::lround(info.param * 100)));
+                         [](const ::testing::TestParamInfo<float>& param) {
+                             return "a" + std::to_string(int(std::lround(param.param * 100)));
                          });
 
 TEST(Furnace, PathLengthOneIsEmissionOnly) {

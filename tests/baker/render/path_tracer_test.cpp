@@ -101,8 +101,8 @@ INSTANTIATE_TEST_SUITE_P(SharedScenes, ExternalRenderTest,
                                            ExternalRender{"EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf", true},
                                            ExternalRender{"MetalRoughSpheresNoTextures/glTF/MetalRoughSpheresNoTextures.gltf", false},
                                            ExternalRender{"Sauerbraten_zdm2/zdm2.glb", false}),
-                         [](const ::testing::TestParamInfo<ExternalRender>& info) {
-                             std::string name(info.param.path);
+                         [](const ::testing::TestParamInfo<ExternalRender>& param) {
+                             std::string name(param.param.path);
                              name = name.substr(0, name.find('/'));
                              return name;
                          });

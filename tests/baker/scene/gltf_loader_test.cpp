@@ -47,8 +47,8 @@ INSTANTIATE_TEST_SUITE_P(
                       ExternalScene{"EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf", 90, 0},
                       ExternalScene{"MetalRoughSpheresNoTextures/glTF/MetalRoughSpheresNoTextures.gltf", 1040409, 0},
                       ExternalScene{"Sauerbraten_zdm2/zdm2.glb", 58772, 0}),
-                         [](const ::testing::TestParamInfo<ExternalScene>& info) {
-                             std::string name(info.param.path);
+                         [](const ::testing::TestParamInfo<ExternalScene>& param) {
+                             std::string name(param.param.path);
                              name = name.substr(0, name.find('/'));
                              return name;
                          });
