@@ -58,11 +58,11 @@ glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& s
 
         Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
         // The sampler's dimensions are consumed in the same order at every vertex.
-        float uPick = sampler.get1D();
+        glm::vec2 uPickLobe = sampler.get2D();  // light pick, BSDF lobe choice
         glm::vec2 uLight = sampler.get2D();
-        float uLobe = sampler.get1D();
         glm::vec2 uBsdf = sampler.get2D();
         float uRoulette = sampler.get1D();
+        float uPick = uPickLobe.x, uLobe = uPickLobe.y;
 
         // Next event estimation.
         if (!lights_.empty()) {

@@ -45,13 +45,29 @@ inline uint32_t nestedUniformScramble(uint32_t x, uint32_t seed) {
     return reverseBits(laineKarrasPermutation(reverseBits(x), seed));
 }
 
+// Second Sobol dimension by bytes: XOR of the direction numbers of the set bits, 8 bits per lookup.
+struct SobolDim1Tables {
+    uint32_t byteTables[4][256];
+    SobolDim1Tables() {
+        uint32_t v[32];
+        v[0] = 1u << 31;
+        for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        for (int b = 0; b < 4; ++b)
+            for (uint32_t x = 0; x < 256; ++x) {
+                uint32_t r = 0;
+                for (int bit = 0; bit < 8; ++bit)
+                    if ((x >> bit) & 1u) r ^= v[b * 8 + bit];
+                byteTables[b][x] = r;
+            }
+    }
+};
+inline const SobolDim1Tables kSobolDim1Tables{};
+
 // First two Sobol dimensions as 32-bit fixed point.
 inline uint32_t sobolDim0(uint32_t index) { return reverseBits(index); }
 inline uint32_t sobolDim1(uint32_t index) {
-    uint32_t result = 0;
-    for (uint32_t v = 1u << 31; index; index >>= 1, v ^= v >> 1)
-        if (index & 1u) result ^= v;
-    return result;
+    const auto& t = kSobolDim1Tables.byteTables;
+    return t[0][index & 255u] ^ t[1][(index >> 8) & 255u] ^ t[2][(index >> 16) & 255u] ^ t[3][index >> 24];
 }
 
 inline float toUnitFloat(uint32_t x) { return float(x >> 8) * 0x1p-24f; }  // in [0, 1)
@@ -63,15 +79,17 @@ public:
 
     float get1D() {
         uint32_t seed = hashCombine(stream_, dimension_++);
-        uint32_t i = nestedUniformScramble(index_, hashCombine(seed, 0x5eed0u));
-        return toUnitFloat(nestedUniformScramble(sobolDim0(i), hashCombine(seed, 1u)));
+        uint32_t i = nestedUniformScramble(index_, seed);
+        return toUnitFloat(nestedUniformScramble(sobolDim0(i), seed * 0x9e3779b9u + 0x632be5abu));
     }
 
     glm::vec2 get2D() {
+        // One hash per dimension pair; the three scrambles get distinct seeds by odd multipliers (the
+        // Laine-Karras permutation mixes them thoroughly).
         uint32_t seed = hashCombine(stream_, dimension_++);
-        uint32_t i = nestedUniformScramble(index_, hashCombine(seed, 0x5eed0u));
-        return {toUnitFloat(nestedUniformScramble(sobolDim0(i), hashCombine(seed, 1u))),
-                toUnitFloat(nestedUniformScramble(sobolDim1(i), hashCombine(seed, 2u)))};
+        uint32_t i = nestedUniformScramble(index_, seed);
+        return {toUnitFloat(nestedUniformScramble(sobolDim0(i), seed * 0x9e3779b9u + 0x632be5abu)),
+                toUnitFloat(nestedUniformScramble(sobolDim1(i), seed * 0x85ebca6bu + 0x2c1b3c6du))};
     }
 
     uint32_t dimension() const { return dimension_; }

@@ -13,6 +13,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 namespace nrad {
@@ -529,6 +530,53 @@ bool hasGlbMagic(const std::string& path) {
     return f.gcount() == 4 && std::memcmp(magic, "glTF", 4) == 0;
 }
 
+// tinygltf decodes Draco while parsing and indexes bufferViews and accessors from the extension without
+// bounds checks; check those indices in the JSON first so a hostile file cannot reach that code.
+void checkDracoIndices(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    std::string text;
+    if (bytes.size() >= 20 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
+        uint32_t chunkLength = 0, chunkType = 0;
+        std::memcpy(&chunkLength, bytes.data() + 12, 4);
+        std::memcpy(&chunkType, bytes.data() + 16, 4);
+        if (chunkType != 0x4E4F534Au || chunkLength > bytes.size() - 20) return;  // tinygltf reports it
+        text = bytes.substr(20, chunkLength);
+    } else {
+        text = std::move(bytes);
+    }
+    nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return;
+    auto count = [&](const char* key) { return doc.contains(key) && doc[key].is_array() ? doc[key].size() : size_t(0); };
+    const size_t views = count("bufferViews"), accessors = count("accessors");
+    auto validIndex = [](const nlohmann::json& v, size_t n) { return v.is_number_integer() && v.get<int64_t>() >= 0 && size_t(v.get<int64_t>()) < n; };
+    for (size_t m = 0; m < doc["meshes"].size(); ++m) {
+        const nlohmann::json& mesh = doc["meshes"][m];
+        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
+        for (size_t p = 0; p < mesh["primitives"].size(); ++p) {
+            const nlohmann::json& prim = mesh["primitives"][p];
+            if (!prim.is_object() || !prim.contains("extensions") || !prim["extensions"].is_object() ||
+                !prim["extensions"].contains("KHR_draco_mesh_compression"))
+                continue;
+            const std::string where = path + ": mesh " + std::to_string(m) + " primitive " + std::to_string(p) + ": ";
+            const nlohmann::json& draco = prim["extensions"]["KHR_draco_mesh_compression"];
+            if (!draco.is_object() || !draco.contains("bufferView") || !validIndex(draco["bufferView"], views))
+                throw SceneError(where + "KHR_draco_mesh_compression refers to a bufferView that does not exist");
+            if (prim.contains("indices") && !validIndex(prim["indices"], accessors))
+                throw SceneError(where + "indices refer to an accessor that does not exist");
+            if (!prim.contains("attributes") || !prim["attributes"].is_object())
+                throw SceneError(where + "has no attributes");
+            for (auto& [name, index] : prim["attributes"].items())
+                if (!validIndex(index, accessors))
+                    throw SceneError(where + "attribute " + name + " refers to an accessor that does not exist");
+            if (draco.contains("attributes") && draco["attributes"].is_object())
+                for (auto& [name, id] : draco["attributes"].items())
+                    if (!prim["attributes"].contains(name))
+                        throw SceneError(where + "Draco attribute " + name + " is not an attribute of the primitive");
+        }
+    }
+}
+
 }  // namespace
 
 Scene loadGltf(const std::string& path) {
@@ -536,6 +584,7 @@ Scene loadGltf(const std::string& path) {
         std::ifstream probe(path, std::ios::binary);
         if (!probe) throw SceneError(path + ": cannot open file");
     }
+    checkDracoIndices(path);
     tinygltf::TinyGLTF loader;
     tinygltf::Model model;
     std::string err, warn;

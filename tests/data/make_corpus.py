@@ -53,6 +53,19 @@ MALFORMED = {
     "wrong-accessor-type.gltf": (gltf(TRI, extra=lambda d: d["accessors"][0].update(type="VEC2")),
                                  "expected 3"),
     "empty-file.gltf": ("", "not a valid glTF file"),
+    "draco-bad-bufferview.gltf": (
+        gltf(TRI, extra=lambda d: (d.update(extensionsUsed=["KHR_draco_mesh_compression"],
+                                            extensionsRequired=["KHR_draco_mesh_compression"]),
+                                   d["meshes"][0]["primitives"][0].update(extensions={"KHR_draco_mesh_compression": {
+                                       "bufferView": 42, "attributes": {"POSITION": 0}}}))),
+        "KHR_draco_mesh_compression refers to a bufferView that does not exist"),
+    "draco-garbage.gltf": (
+        gltf(TRI, extra=lambda d: (d.update(extensionsUsed=["KHR_draco_mesh_compression"],
+                                            extensionsRequired=["KHR_draco_mesh_compression"]),
+                                   d["accessors"][0].pop("bufferView"),
+                                   d["meshes"][0]["primitives"][0].update(extensions={"KHR_draco_mesh_compression": {
+                                       "bufferView": 0, "attributes": {"POSITION": 0}}}))),
+        "has no valid bufferView"),
 }
 
 VALID = {
