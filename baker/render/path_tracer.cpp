@@ -33,19 +33,24 @@ constexpr int kRouletteStart = 3;
 
 glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
                                RayCounters& counters, std::vector<RecordedRay>* record) const {
+    ++counters.primary;
+    if (record) record->push_back({origin, direction, std::numeric_limits<float>::infinity(), false});
+    Hit hit = accel_.intersect(origin, direction);
+    if (!hit.valid()) return glm::vec3(0.0f);
+    return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record);
+}
+
+glm::vec3 PathTracer::outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth,
+                                       RayCounters& counters) const {
+    return trace(si, sampler, maxDepth, counters, nullptr);
+}
+
+glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
+                            std::vector<RecordedRay>* record) const {
     glm::vec3 L(0.0f), beta(1.0f);
     float prevBsdfPdf = 0.0f;
     glm::vec3 prevP(0.0f);
-    for (int depth = 0;; ++depth) {  // depth = segments traced before this one
-        if (depth == 0)
-            ++counters.primary;
-        else
-            ++counters.extension;
-        if (record) record->push_back({origin, direction, std::numeric_limits<float>::infinity(), false});
-        Hit hit = accel_.intersect(origin, direction);
-        if (!hit.valid()) break;
-        SurfaceInteraction si = makeInteraction(scene_, hit, direction);
-
+    for (int depth = 0;; ++depth) {  // depth = segments traced before the one that reached si
         if (!isBlack(si.emission)) {
             if (depth == 0) {
                 L += beta * si.emission;
@@ -98,8 +103,12 @@ glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& s
             if (uRoulette >= q) break;
             beta /= q;
         }
-        origin = si.spawnOrigin(bs.wi);
-        direction = bs.wi;
+        glm::vec3 origin = si.spawnOrigin(bs.wi);
+        ++counters.extension;
+        if (record) record->push_back({origin, bs.wi, std::numeric_limits<float>::infinity(), false});
+        Hit hit = accel_.intersect(origin, bs.wi);
+        if (!hit.valid()) break;
+        si = makeInteraction(scene_, hit, bs.wi);
     }
     return L;
 }

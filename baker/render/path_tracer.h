@@ -16,6 +16,7 @@
 #include "baker/render/image_io.h"
 #include "baker/render/light_sampler.h"
 #include "baker/render/sampler.h"
+#include "baker/render/surface.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
@@ -62,6 +63,10 @@ public:
     glm::vec3 radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth, RayCounters& counters,
                        std::vector<RecordedRay>* record = nullptr) const;
 
+    // One estimate of L(x, wo) at an existing surface interaction (emission included), with the same
+    // integrator; si counts as reached by one segment, so maxDepth means the same as for camera paths.
+    glm::vec3 outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth, RayCounters& counters) const;
+
     // Renders an image; progress(fraction) is called from worker threads as tiles finish.
     Image render(const Camera& camera, const RenderSettings& settings, RenderStats* stats = nullptr,
                  const std::function<void(double)>& progress = {}) const;
@@ -71,6 +76,9 @@ public:
     std::vector<RecordedRay> recordRays(const Camera& camera, const RenderSettings& settings) const;
 
 private:
+    glm::vec3 trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
+                    std::vector<RecordedRay>* record) const;
+
     const Scene& scene_;
     const Accel& accel_;
     const LightSampler& lights_;

@@ -1,0 +1,488 @@
+// The .nrad asset byte layout: constants, the header and section records, the CRC, the voxel lookup and
+// a decoder that checks every offset, size and CRC against the buffer it is given. This file is the
+// single definition shared by the baker's writer and the runtime's reader; docs/format.md specifies it.
+// Only the C++17 standard library.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+namespace nrad::format {
+
+// ----- constants ------------------------------------------------------------------------------------------
+
+// PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
+constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
+constexpr uint16_t kVersionMajor = 1;  // a reader rejects any other major version
+constexpr uint16_t kVersionMinor = 0;  // a reader accepts newer minors (new optional sections only)
+
+constexpr uint32_t kHeaderSize = 64;
+constexpr uint32_t kSectionRecordSize = 32;
+constexpr uint32_t kSectionAlignment = 8;
+constexpr uint32_t kMaxSections = 64;
+constexpr uint32_t kMaxHiddenLayers = 8;
+constexpr uint32_t kMaxHiddenWidth = 256;
+constexpr uint32_t kInputCount = 9;  // position in voxel (3), normal (3), direction (3)
+constexpr uint32_t kOutputCount = 3;  // RGB radiance
+constexpr uint32_t kMaxGridDim = 1024;
+
+constexpr uint32_t fourcc(char a, char b, char c, char d) {
+    return uint32_t(uint8_t(a)) | (uint32_t(uint8_t(b)) << 8) | (uint32_t(uint8_t(c)) << 16) | (uint32_t(uint8_t(d)) << 24);
+}
+constexpr uint32_t kSectionGrid = fourcc('G', 'R', 'I', 'D');
+constexpr uint32_t kSectionTopology = fourcc('T', 'O', 'P', 'O');
+constexpr uint32_t kSectionVoxels = fourcc('V', 'O', 'X', 'L');
+constexpr uint32_t kSectionWeights = fourcc('W', 'G', 'H', 'T');
+constexpr uint32_t kSectionMetadata = fourcc('M', 'E', 'T', 'A');
+
+enum class Activation : uint32_t { ReLU = 1 };
+// How the last layer's value y becomes radiance: L = scale * max(0, y), or L = scale * (exp(y) - 1) for
+// networks trained in log space (never negative either way; scale is the voxel's).
+enum class OutputTransform : uint32_t { ClampedLinear = 0, Exponential = 1 };
+enum class WeightEncoding : uint32_t { Float32 = 0, Float16 = 1 };
+
+// ----- records (little-endian on disk; these structs only document field order, the codec below reads and
+// writes field by field so host padding and endianness never matter) --------------------------------------
+
+struct Header {  // 64 bytes at offset 0
+    // 0: magic[8]; 8: u16 versionMajor; 10: u16 versionMinor; 12: u32 flags (0); 16: u32 headerSize (64);
+    // 20: u32 sectionCount; 24: u64 fileSize; 32: u64 sectionTableOffset; 40..59: reserved (0);
+    // 60: u32 CRC-32 of bytes 0..59.
+    uint16_t versionMajor = kVersionMajor;
+    uint16_t versionMinor = kVersionMinor;
+    uint32_t flags = 0;
+    uint32_t sectionCount = 0;
+    uint64_t fileSize = 0;
+    uint64_t sectionTableOffset = kHeaderSize;
+};
+
+struct SectionRecord {  // 32 bytes each, sectionCount of them at sectionTableOffset
+    // 0: u32 type (fourcc); 4: u32 flags (0); 8: u64 offset; 16: u64 size; 24: u32 CRC-32 of the section's
+    // bytes; 28: u32 reserved (0).
+    uint32_t type = 0;
+    uint64_t offset = 0;
+    uint64_t size = 0;
+    uint32_t crc = 0;
+};
+
+struct Grid {  // GRID, 40 bytes: f32 lower[3], f32 upper[3], u32 dims[3], u32 reserved
+    float lower[3] = {0, 0, 0};
+    float upper[3] = {1, 1, 1};
+    uint32_t dims[3] = {1, 1, 1};
+    uint64_t voxelCount() const { return uint64_t(dims[0]) * dims[1] * dims[2]; }
+};
+
+struct Topology {  // TOPO: u32 inputs, u32 outputs, u32 hiddenLayers, u32 activation, u32 outputTransform,
+                   // u32 weightEncoding, u32 hiddenWidth[hiddenLayers]
+    uint32_t inputs = kInputCount;
+    uint32_t outputs = kOutputCount;
+    std::vector<uint32_t> hiddenWidths = {9};
+    Activation activation = Activation::ReLU;
+    OutputTransform outputTransform = OutputTransform::ClampedLinear;
+    WeightEncoding weightEncoding = WeightEncoding::Float16;
+
+    // Parameters of one network: per layer, W (out x in, row-major) then b (out).
+    uint64_t parameterCount() const {
+        uint64_t n = 0, in = inputs;
+        for (uint32_t w : hiddenWidths) {
+            n += uint64_t(w) * in + w;
+            in = w;
+        }
+        return n + uint64_t(outputs) * in + outputs;
+    }
+    uint32_t bytesPerWeight() const { return weightEncoding == WeightEncoding::Float16 ? 2 : 4; }
+};
+
+// VOXL: u32 occupiedCount, then occupiedCount records of 8 bytes: u32 linear voxel index (strictly
+// increasing), f32 output scale (finite, > 0). WGHT: the networks in VOXL order, parameterCount weights each,
+// in the topology's encoding. META: UTF-8 JSON (optional).
+struct VoxelEntry {
+    uint32_t index = 0;  // x + dims[0] * (y + dims[1] * z)
+    float scale = 1.0f;
+};
+
+// ----- CRC-32 (IEEE 802.3, the zlib/PNG polynomial) ----------------------------------------------------
+
+inline uint32_t crc32(const uint8_t* data, size_t size, uint32_t crc = 0) {
+    static const auto table = [] {
+        std::array<uint32_t, 256> t{};
+        for (uint32_t i = 0; i < 256; ++i) {
+            uint32_t c = i;
+            for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+            t[i] = c;
+        }
+        return t;
+    }();
+    crc = ~crc;
+    for (size_t i = 0; i < size; ++i) crc = table[(crc ^ data[i]) & 0xFFu] ^ (crc >> 8);
+    return ~crc;
+}
+
+// ----- fp16 -----------------------------------------------------------------------------------------------
+
+// IEEE 754 binary16, round to nearest even; finite inputs beyond the range saturate to +-65504.
+inline uint16_t floatToHalf(float f) {
+    uint32_t x;
+    std::memcpy(&x, &f, 4);
+    uint32_t sign = (x >> 16) & 0x8000u;
+    uint32_t absx = x & 0x7FFFFFFFu;
+    if (absx >= 0x7F800000u) return uint16_t(sign | (absx > 0x7F800000u ? 0x7E00u : 0x7C00u));  // NaN / Inf
+    if (absx >= 0x477FF000u) return uint16_t(sign | 0x7BFFu);  // rounds to >= 65520: saturate
+    if (absx < 0x38800000u) {  // subnormal half (or zero)
+        if (absx < 0x33000000u) return uint16_t(sign);  // below half the smallest subnormal
+        uint32_t mant = (absx & 0x007FFFFFu) | 0x00800000u;
+        int shift = 126 - int(absx >> 23);  // 14..24
+        uint32_t half = mant >> shift;
+        uint32_t rem = mant & ((1u << shift) - 1u), mid = 1u << (shift - 1);
+        if (rem > mid || (rem == mid && (half & 1u))) ++half;
+        return uint16_t(sign | half);
+    }
+    uint32_t half = ((absx - 0x38000000u) >> 13);
+    uint32_t rem = absx & 0x1FFFu;
+    if (rem > 0x1000u || (rem == 0x1000u && (half & 1u))) ++half;
+    return uint16_t(sign | half);
+}
+
+inline float halfToFloat(uint16_t h) {
+    uint32_t sign = uint32_t(h & 0x8000u) << 16;
+    uint32_t exp = (h >> 10) & 0x1Fu, mant = h & 0x3FFu;
+    uint32_t x;
+    if (exp == 0) {
+        if (mant == 0) {
+            x = sign;
+        } else {  // subnormal: normalise
+            int e = -1;
+            do {
+                ++e;
+                mant <<= 1;
+            } while (!(mant & 0x400u));
+            x = sign | (uint32_t(112 - e) << 23) | ((mant & 0x3FFu) << 13);
+        }
+    } else if (exp == 31) {
+        x = sign | 0x7F800000u | (mant << 13);
+    } else {
+        x = sign | ((exp + 112) << 23) | (mant << 13);
+    }
+    float f;
+    std::memcpy(&f, &x, 4);
+    return f;
+}
+
+// ----- voxel lookup: the rule both the baker and the runtime use ------------------------------------------
+
+// Voxel coordinate of p along one axis: floor((p - lower) / (upper - lower) * dim), with the upper face
+// belonging to the last voxel. A point on an interior border belongs to the voxel above it. Returns -1
+// outside [lower, upper] (or for NaN).
+inline int voxelCoordinate(float p, float lower, float upper, uint32_t dim) {
+    if (!(p >= lower && p <= upper)) return -1;
+    float t = (p - lower) / (upper - lower) * float(dim);
+    int i = int(t);
+    return i >= int(dim) ? int(dim) - 1 : (i < 0 ? 0 : i);
+}
+
+// Linear index of the voxel holding p, or -1 if p is outside the grid.
+inline int64_t voxelIndex(const Grid& g, const float p[3]) {
+    int c[3];
+    for (int k = 0; k < 3; ++k)
+        if ((c[k] = voxelCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k])) < 0) return -1;
+    return int64_t(c[0]) + int64_t(g.dims[0]) * (int64_t(c[1]) + int64_t(g.dims[1]) * int64_t(c[2]));
+}
+
+// Position of p inside voxel (x, y, z), mapped to [-1, 1]^3 (the network's first three inputs).
+inline void positionInVoxel(const Grid& g, const float p[3], const int coord[3], float out[3]) {
+    for (int k = 0; k < 3; ++k) {
+        float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+        float lo = g.lower[k] + size * float(coord[k]);
+        out[k] = 2.0f * (p[k] - lo) / size - 1.0f;
+    }
+}
+
+// ----- decoding -------------------------------------------------------------------------------------------
+
+enum class DecodeStatus {
+    Ok = 0,
+    Truncated,  // the buffer ends before a structure it announces
+    BadMagic,
+    UnsupportedVersion,  // another major version
+    BadHeader,  // header size, flags, reserved bytes, or file size do not match
+    HeaderCrcMismatch,
+    BadSectionTable,  // a section outside the file, overlapping, misaligned, duplicated, or unknown required
+    SectionCrcMismatch,
+    MissingSection,  // GRID, TOPO, VOXL or WGHT absent
+    BadGrid,  // non-finite or empty bounds, zero or huge dimensions
+    BadTopology,  // unsupported sizes, activation, transform or encoding
+    BadVoxels,  // count, ordering, range or scale of the voxel table
+    BadWeights,  // wrong size, or a weight that is not finite
+    TrailingBytes,  // bytes after the last section
+};
+
+inline const char* decodeStatusString(DecodeStatus s) {
+    switch (s) {
+        case DecodeStatus::Ok: return "ok";
+        case DecodeStatus::Truncated: return "truncated file";
+        case DecodeStatus::BadMagic: return "not an .nrad asset (bad magic)";
+        case DecodeStatus::UnsupportedVersion: return "unsupported format version";
+        case DecodeStatus::BadHeader: return "invalid header";
+        case DecodeStatus::HeaderCrcMismatch: return "header CRC mismatch (damaged file)";
+        case DecodeStatus::BadSectionTable: return "invalid section table";
+        case DecodeStatus::SectionCrcMismatch: return "section CRC mismatch (damaged file)";
+        case DecodeStatus::MissingSection: return "a required section is missing";
+        case DecodeStatus::BadGrid: return "invalid grid";
+        case DecodeStatus::BadTopology: return "invalid or unsupported network topology";
+        case DecodeStatus::BadVoxels: return "invalid voxel table";
+        case DecodeStatus::BadWeights: return "invalid weights";
+        case DecodeStatus::TrailingBytes: return "trailing bytes after the last section";
+    }
+    return "unknown status";
+}
+
+// A decoded asset. Weights are converted to float; `networks` holds occupiedCount x parameterCount values.
+struct Asset {
+    Header header;
+    Grid grid;
+    Topology topology;
+    std::vector<VoxelEntry> voxels;
+    std::vector<float> weights;
+    std::string metadata;  // JSON text, empty if the section is absent
+};
+
+namespace detail {
+inline uint16_t rd16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
+inline uint32_t rd32(const uint8_t* p) { return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24); }
+inline uint64_t rd64(const uint8_t* p) { return uint64_t(rd32(p)) | (uint64_t(rd32(p + 4)) << 32); }
+inline float rdf32(const uint8_t* p) {
+    uint32_t x = rd32(p);
+    float f;
+    std::memcpy(&f, &x, 4);
+    return f;
+}
+}  // namespace detail
+
+// Decodes and validates an asset held in [data, data + size). Safe on untrusted input: every offset and
+// count is checked against the buffer before use, every CRC is verified, every weight must be finite.
+inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
+    using namespace detail;
+    if (size < kHeaderSize) return (size >= 8 && std::memcmp(data, kMagic.data(), 8) != 0) ? DecodeStatus::BadMagic : DecodeStatus::Truncated;
+    if (std::memcmp(data, kMagic.data(), 8) != 0) return DecodeStatus::BadMagic;
+    Header h;
+    h.versionMajor = rd16(data + 8);
+    h.versionMinor = rd16(data + 10);
+    if (h.versionMajor != kVersionMajor) return DecodeStatus::UnsupportedVersion;
+    if (crc32(data, 60) != rd32(data + 60)) return DecodeStatus::HeaderCrcMismatch;
+    h.flags = rd32(data + 12);
+    uint32_t headerSize = rd32(data + 16);
+    h.sectionCount = rd32(data + 20);
+    h.fileSize = rd64(data + 24);
+    h.sectionTableOffset = rd64(data + 32);
+    for (int i = 40; i < 60; ++i)
+        if (data[i] != 0) return DecodeStatus::BadHeader;
+    if (headerSize != kHeaderSize || h.flags != 0) return DecodeStatus::BadHeader;
+    if (h.fileSize > size) return DecodeStatus::Truncated;
+    if (h.fileSize < size) return DecodeStatus::TrailingBytes;
+    if (h.sectionCount == 0 || h.sectionCount > kMaxSections || h.sectionTableOffset != kHeaderSize)
+        return DecodeStatus::BadSectionTable;
+    uint64_t tableEnd = h.sectionTableOffset + uint64_t(h.sectionCount) * kSectionRecordSize;
+    if (tableEnd > size) return DecodeStatus::Truncated;
+
+    const uint8_t* grid = nullptr;
+    const uint8_t* topo = nullptr;
+    const uint8_t* voxl = nullptr;
+    const uint8_t* wght = nullptr;
+    const uint8_t* meta = nullptr;
+    uint64_t gridSize = 0, topoSize = 0, voxlSize = 0, wghtSize = 0, metaSize = 0;
+    uint64_t expectedOffset = (tableEnd + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
+    for (uint32_t i = 0; i < h.sectionCount; ++i) {
+        const uint8_t* r = data + h.sectionTableOffset + uint64_t(i) * kSectionRecordSize;
+        SectionRecord s;
+        s.type = rd32(r);
+        uint32_t flags = rd32(r + 4);
+        s.offset = rd64(r + 8);
+        s.size = rd64(r + 16);
+        s.crc = rd32(r + 24);
+        if (flags != 0 || rd32(r + 28) != 0) return DecodeStatus::BadSectionTable;
+        // Sections follow the table in order, each at the next aligned offset: no gaps, no overlap.
+        if (s.offset != expectedOffset) return DecodeStatus::BadSectionTable;
+        if (s.size > size || s.offset > size - s.size) return DecodeStatus::Truncated;
+        if (crc32(data + s.offset, size_t(s.size)) != s.crc) return DecodeStatus::SectionCrcMismatch;
+        expectedOffset = (s.offset + s.size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
+        const uint8_t*& slot = s.type == kSectionGrid ? grid : s.type == kSectionTopology ? topo : s.type == kSectionVoxels ? voxl
+                             : s.type == kSectionWeights ? wght : meta;
+        uint64_t& slotSize = s.type == kSectionGrid ? gridSize : s.type == kSectionTopology ? topoSize : s.type == kSectionVoxels ? voxlSize
+                             : s.type == kSectionWeights ? wghtSize : metaSize;
+        if (s.type != kSectionGrid && s.type != kSectionTopology && s.type != kSectionVoxels && s.type != kSectionWeights &&
+            s.type != kSectionMetadata) {
+            // Unknown sections are allowed (newer minor versions) but must not repeat known ones.
+            continue;
+        }
+        if (slot) return DecodeStatus::BadSectionTable;  // duplicated
+        slot = data + s.offset;
+        slotSize = s.size;
+        if (i + 1 == h.sectionCount && s.offset + s.size != size) return DecodeStatus::TrailingBytes;
+    }
+    {
+        const uint8_t* last = data + h.sectionTableOffset + uint64_t(h.sectionCount - 1) * kSectionRecordSize;
+        if (rd64(last + 8) + rd64(last + 16) != size) return DecodeStatus::TrailingBytes;
+    }
+    if (!grid || !topo || !voxl || !wght) return DecodeStatus::MissingSection;
+
+    Grid g;
+    if (gridSize != 40) return DecodeStatus::BadGrid;
+    for (int k = 0; k < 3; ++k) {
+        g.lower[k] = rdf32(grid + 4 * k);
+        g.upper[k] = rdf32(grid + 12 + 4 * k);
+        g.dims[k] = rd32(grid + 24 + 4 * k);
+        if (!std::isfinite(g.lower[k]) || !std::isfinite(g.upper[k]) || !(g.upper[k] > g.lower[k]) ||
+            !std::isfinite(g.upper[k] - g.lower[k]) || g.dims[k] == 0 || g.dims[k] > kMaxGridDim)
+            return DecodeStatus::BadGrid;
+    }
+    if (rd32(grid + 36) != 0) return DecodeStatus::BadGrid;
+
+    Topology t;
+    if (topoSize < 24) return DecodeStatus::BadTopology;
+    t.inputs = rd32(topo);
+    t.outputs = rd32(topo + 4);
+    uint32_t layers = rd32(topo + 8);
+    uint32_t act = rd32(topo + 12), transform = rd32(topo + 16), enc = rd32(topo + 20);
+    if (t.inputs != kInputCount || t.outputs != kOutputCount || layers == 0 || layers > kMaxHiddenLayers ||
+        topoSize != 24 + 4 * uint64_t(layers) || act != uint32_t(Activation::ReLU) || transform > 1 || enc > 1)
+        return DecodeStatus::BadTopology;
+    t.activation = Activation(act);
+    t.outputTransform = OutputTransform(transform);
+    t.weightEncoding = WeightEncoding(enc);
+    t.hiddenWidths.resize(layers);
+    for (uint32_t l = 0; l < layers; ++l) {
+        t.hiddenWidths[l] = rd32(topo + 24 + 4 * l);
+        if (t.hiddenWidths[l] == 0 || t.hiddenWidths[l] > kMaxHiddenWidth) return DecodeStatus::BadTopology;
+    }
+
+    if (voxlSize < 4) return DecodeStatus::BadVoxels;
+    uint32_t occupied = rd32(voxl);
+    if (occupied == 0 || occupied > g.voxelCount() || voxlSize != 4 + 8 * uint64_t(occupied)) return DecodeStatus::BadVoxels;
+    std::vector<VoxelEntry> voxels(occupied);
+    for (uint32_t i = 0; i < occupied; ++i) {
+        voxels[i].index = rd32(voxl + 4 + 8 * uint64_t(i));
+        voxels[i].scale = rdf32(voxl + 8 + 8 * uint64_t(i));
+        if (voxels[i].index >= g.voxelCount() || (i > 0 && voxels[i].index <= voxels[i - 1].index) ||
+            !std::isfinite(voxels[i].scale) || !(voxels[i].scale > 0.0f))
+            return DecodeStatus::BadVoxels;
+    }
+
+    uint64_t params = t.parameterCount();
+    if (wghtSize != uint64_t(occupied) * params * t.bytesPerWeight()) return DecodeStatus::BadWeights;
+    std::vector<float> weights(size_t(uint64_t(occupied) * params));
+    for (size_t i = 0; i < weights.size(); ++i) {
+        float w = t.weightEncoding == WeightEncoding::Float16 ? halfToFloat(rd16(wght + 2 * i)) : rdf32(wght + 4 * i);
+        if (!std::isfinite(w)) return DecodeStatus::BadWeights;
+        weights[i] = w;
+    }
+
+    out.header = h;
+    out.grid = g;
+    out.topology = std::move(t);
+    out.voxels = std::move(voxels);
+    out.weights = std::move(weights);
+    out.metadata = meta ? std::string(reinterpret_cast<const char*>(meta), size_t(metaSize)) : std::string();
+    return DecodeStatus::Ok;
+}
+
+// ----- encoding -------------------------------------------------------------------------------------------
+
+namespace detail {
+inline void wr16(std::vector<uint8_t>& b, uint16_t v) { b.push_back(uint8_t(v)); b.push_back(uint8_t(v >> 8)); }
+inline void wr32(std::vector<uint8_t>& b, uint32_t v) { for (int i = 0; i < 4; ++i) b.push_back(uint8_t(v >> (8 * i))); }
+inline void wr64(std::vector<uint8_t>& b, uint64_t v) { for (int i = 0; i < 8; ++i) b.push_back(uint8_t(v >> (8 * i))); }
+inline void wrf32(std::vector<uint8_t>& b, float f) {
+    uint32_t x;
+    std::memcpy(&x, &f, 4);
+    wr32(b, x);
+}
+inline void put32(std::vector<uint8_t>& b, size_t at, uint32_t v) { for (int i = 0; i < 4; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i)); }
+inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i)); }
+}  // namespace detail
+
+// Encodes an asset. Preconditions (the caller's job; encode() does not validate): weights.size() ==
+// voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid, all values
+// finite, scales > 0. The output decodes to the same asset (weights rounded to the encoding).
+inline std::vector<uint8_t> encode(const Asset& a) {
+    using namespace detail;
+    std::vector<std::vector<uint8_t>> sections;
+    std::vector<uint32_t> types;
+    {
+        std::vector<uint8_t> s;
+        for (int k = 0; k < 3; ++k) wrf32(s, a.grid.lower[k]);
+        for (int k = 0; k < 3; ++k) wrf32(s, a.grid.upper[k]);
+        for (int k = 0; k < 3; ++k) wr32(s, a.grid.dims[k]);
+        wr32(s, 0);
+        sections.push_back(std::move(s));
+        types.push_back(kSectionGrid);
+    }
+    {
+        std::vector<uint8_t> s;
+        const Topology& t = a.topology;
+        wr32(s, t.inputs);
+        wr32(s, t.outputs);
+        wr32(s, uint32_t(t.hiddenWidths.size()));
+        wr32(s, uint32_t(t.activation));
+        wr32(s, uint32_t(t.outputTransform));
+        wr32(s, uint32_t(t.weightEncoding));
+        for (uint32_t w : t.hiddenWidths) wr32(s, w);
+        sections.push_back(std::move(s));
+        types.push_back(kSectionTopology);
+    }
+    {
+        std::vector<uint8_t> s;
+        wr32(s, uint32_t(a.voxels.size()));
+        for (const VoxelEntry& v : a.voxels) {
+            wr32(s, v.index);
+            wrf32(s, v.scale);
+        }
+        sections.push_back(std::move(s));
+        types.push_back(kSectionVoxels);
+    }
+    {
+        std::vector<uint8_t> s;
+        for (float w : a.weights) {
+            if (a.topology.weightEncoding == WeightEncoding::Float16)
+                wr16(s, floatToHalf(w));
+            else
+                wrf32(s, w);
+        }
+        sections.push_back(std::move(s));
+        types.push_back(kSectionWeights);
+    }
+    if (!a.metadata.empty()) {
+        sections.emplace_back(a.metadata.begin(), a.metadata.end());
+        types.push_back(kSectionMetadata);
+    }
+
+    std::vector<uint8_t> out(kHeaderSize, 0);
+    std::memcpy(out.data(), kMagic.data(), 8);
+    out[8] = uint8_t(kVersionMajor);
+    out[9] = uint8_t(kVersionMajor >> 8);
+    out[10] = uint8_t(kVersionMinor);
+    out[11] = uint8_t(kVersionMinor >> 8);
+    put32(out, 16, kHeaderSize);
+    put32(out, 20, uint32_t(sections.size()));
+    put64(out, 32, kHeaderSize);
+    size_t tableAt = out.size();
+    out.resize(out.size() + sections.size() * kSectionRecordSize, 0);
+    for (size_t i = 0; i < sections.size(); ++i) {
+        while (out.size() % kSectionAlignment) out.push_back(0);
+        size_t r = tableAt + i * kSectionRecordSize;
+        put32(out, r, types[i]);
+        put64(out, r + 8, out.size());
+        put64(out, r + 16, sections[i].size());
+        put32(out, r + 24, crc32(sections[i].data(), sections[i].size()));
+        out.insert(out.end(), sections[i].begin(), sections[i].end());
+    }
+    put64(out, 24, out.size());
+    put32(out, 60, crc32(out.data(), 60));
+    return out;
+}
+
+}  // namespace nrad::format
