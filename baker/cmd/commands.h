@@ -13,7 +13,9 @@ enum ExitCode : int {
     kExitIo = 4,  // an output could not be written
 };
 
-// Registers `nrad render`; the returned callback runs it and returns an exit code.
+// Each registers its subcommand; the returned callback runs it and returns an exit code.
 std::function<int()> addRenderCommand(CLI::App& app);
+std::function<int()> addBakeCommand(CLI::App& app);
+std::function<int()> addInfoCommand(CLI::App& app);
 
 }  // namespace nrad

@@ -1,6 +1,8 @@
 // main(): `nrad <subcommand>`; maps every failure to a message on stderr and a documented exit code.
 #include <cstdio>
 #include <exception>
+#include <map>
+#include <string>
 
 #include "baker/cmd/commands.h"
 
@@ -8,7 +10,9 @@ int main(int argc, char** argv) {
     CLI::App app{"nrad: bake glTF scenes into neural radiance assets, and render them"};
     app.require_subcommand(1);
     app.set_version_flag("--version", "nrad 0.1.0");
-    auto runRender = nrad::addRenderCommand(app);
+    std::map<std::string, std::function<int()>> commands = {{"bake", nrad::addBakeCommand(app)},
+                                                            {"render", nrad::addRenderCommand(app)},
+                                                            {"info", nrad::addInfoCommand(app)}};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -22,9 +26,7 @@ int main(int argc, char** argv) {
         return nrad::kExitUsage;
     }
     try {
-        for (CLI::App* sub : app.get_subcommands()) {
-            if (sub->get_name() == "render") return runRender();
-        }
+        for (CLI::App* sub : app.get_subcommands()) return commands.at(sub->get_name())();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "nrad: internal error: %s\n", e.what());
         return nrad::kExitInternal;

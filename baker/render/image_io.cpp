@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <random>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -14,6 +13,7 @@
 #include <stb_image_write.h>
 
 #include "baker/scene/texture.h"
+#include "baker/util/atomic_file.h"
 
 namespace nrad {
 
@@ -27,31 +27,6 @@ std::string lowerExtension(const std::string& path) {
     return ext;
 }
 
-std::string temporaryPathFor(const std::string& path) {
-    std::random_device rd;
-    return path + ".tmp-" + std::to_string(rd());
-}
-
-// Runs write(tmp) and renames tmp to path; removes tmp on any failure.
-template <typename F>
-void writeAtomically(const std::string& path, F&& write) {
-    std::string tmp = temporaryPathFor(path);
-    try {
-        write(tmp);
-        std::error_code ec;
-        fs::rename(tmp, path, ec);
-        if (ec) throw IoError(path + ": cannot write file: " + ec.message());
-    } catch (const IoError&) {
-        std::error_code ignored;
-        fs::remove(tmp, ignored);
-        throw;
-    } catch (const std::exception& e) {
-        std::error_code ignored;
-        fs::remove(tmp, ignored);
-        throw IoError(path + ": cannot write file: " + e.what());
-    }
-}
-
 }  // namespace
 
 glm::dvec3 Image::mean() const {
@@ -61,7 +36,7 @@ glm::dvec3 Image::mean() const {
 }
 
 void writeExr(const std::string& path, const Image& image) {
-    writeAtomically(path, [&](const std::string& tmp) {
+    writeFileAtomically(path, [&](const std::string& tmp) {
         Imf::Header header(image.width, image.height);
         header.channels().insert("R", Imf::Channel(Imf::FLOAT));
         header.channels().insert("G", Imf::Channel(Imf::FLOAT));
@@ -108,7 +83,7 @@ void writePng(const std::string& path, const Image& image, float exposure) {
             v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
             rgb[3 * i + size_t(c)] = static_cast<unsigned char>(std::lround(linearToSrgb(v) * 255.0f));
         }
-    writeAtomically(path, [&](const std::string& tmp) {
+    writeFileAtomically(path, [&](const std::string& tmp) {
         if (!stbi_write_png(tmp.c_str(), image.width, image.height, 3, rgb.data(), image.width * 3))
             throw IoError(path + ": cannot write PNG");
     });

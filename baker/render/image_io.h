@@ -8,6 +8,8 @@
 
 #include <glm/glm.hpp>
 
+#include "baker/util/atomic_file.h"
+
 namespace nrad {
 
 struct Image {
@@ -22,10 +24,6 @@ struct Image {
     glm::dvec3 mean() const;
 };
 
-class IoError : public std::runtime_error {
-public:
-    using std::runtime_error::runtime_error;
-};
 
 // Writes linear float RGB. Throws IoError.
 void writeExr(const std::string& path, const Image& image);

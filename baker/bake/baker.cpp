@@ -1,0 +1,127 @@
+// The bake pipeline.
+#include "baker/bake/baker.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
+
+#include "baker/render/accel.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/path_tracer.h"
+
+namespace nrad {
+
+namespace {
+double since(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+template <typename T>
+void hashBytes(uint64_t& h, const T* data, size_t count) {
+    const auto* p = reinterpret_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < count * sizeof(T); ++i) {
+        h ^= p[i];
+        h *= 0x100000001b3ull;
+    }
+}
+}  // namespace
+
+uint64_t sceneHash(const Scene& scene) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    hashBytes(h, scene.mesh.positions.data(), scene.mesh.positions.size());
+    hashBytes(h, scene.mesh.normals.data(), scene.mesh.normals.size());
+    hashBytes(h, scene.mesh.triangles.data(), scene.mesh.triangles.size());
+    hashBytes(h, scene.mesh.materialIds.data(), scene.mesh.materialIds.size());
+    for (const Material& m : scene.materials) {
+        float f[] = {m.baseColor.x, m.baseColor.y, m.baseColor.z, m.metallic, m.roughness, m.emission.x, m.emission.y,
+                     m.emission.z, m.specular, m.specularColor.x, m.specularColor.y, m.specularColor.z, m.ior, float(m.doubleSided),
+                     float(m.baseColorTexture.texture), float(m.emissiveTexture.texture), float(m.metallicRoughnessTexture.texture)};
+        hashBytes(h, f, sizeof f / sizeof f[0]);
+    }
+    for (const Texture& t : scene.textures) hashBytes(h, t.texels.data(), t.texels.size());
+    for (const PunctualLight& l : scene.lights) {
+        float f[] = {float(l.type), l.position.x, l.position.y, l.position.z, l.direction.x, l.direction.y, l.direction.z,
+                     l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone};
+        hashBytes(h, f, sizeof f / sizeof f[0]);
+    }
+    return h;
+}
+
+BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
+    BakeResult result;
+    auto t0 = std::chrono::steady_clock::now();
+    Accel accel(scene.mesh);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    VoxelGrid grid(scene.bounds, settings.grid);
+    SurfacePieces pieces(scene.mesh, grid);
+    result.surfaceArea = pieces.totalArea();
+    result.timings.setup = since(t0);
+
+    auto t1 = std::chrono::steady_clock::now();
+    std::vector<TrainingSample> samples =
+        generateTrainingSamples(scene, tracer, grid, pieces, settings.samples, result.sampleStats, progress.sampling);
+    result.sampleCount = samples.size();
+    result.timings.sampling = since(t1);
+
+    // Group by voxel (stable: the sample order is fixed), then train every occupied voxel in parallel.
+    std::vector<std::vector<const TrainingSample*>> byVoxel(grid.voxelCount());
+    for (const TrainingSample& s : samples) byVoxel[s.voxel].push_back(&s);
+    std::vector<uint32_t> occupied;
+    for (uint32_t v = 0; v < grid.voxelCount(); ++v)
+        if (!byVoxel[v].empty()) occupied.push_back(v);
+    auto t2 = std::chrono::steady_clock::now();
+    result.voxels.resize(occupied.size());
+    std::atomic<size_t> done{0};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            result.voxels[k] = trainVoxel(grid, occupied[k], byVoxel[occupied[k]], settings.train);
+            size_t d = ++done;
+            if (progress.training) progress.training(double(d) / double(occupied.size()));
+        }
+    });
+    result.timings.training = since(t2);
+
+    format::Asset& a = result.asset;
+    a.grid = grid.grid();
+    a.topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
+    a.topology.weightEncoding = settings.encoding;
+    a.topology.outputTransform =
+        settings.train.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+    for (const VoxelTrainResult& v : result.voxels) {
+        a.voxels.push_back({v.voxel, v.scale});
+        a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
+    }
+    if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
+    return result;
+}
+
+std::string assetMetadata(const Scene& scene, const BakeSettings& settings, const BakeResult& result) {
+    nlohmann::json j;
+    j["tool"] = "nrad 0.1.0";
+    char hash[17];
+    std::snprintf(hash, sizeof hash, "%016llx", (unsigned long long)sceneHash(scene));
+    j["scene_hash"] = hash;
+    const SampleSettings& s = settings.samples;
+    const TrainSettings& t = settings.train;
+    j["bake"] = {{"grid", {settings.grid.x, settings.grid.y, settings.grid.z}},
+                 {"points", s.points},
+                 {"paths", s.paths},
+                 {"max_depth", s.maxDepth},
+                 {"seed", s.seed},
+                 {"min_samples_per_voxel", s.minSamplesPerVoxel},
+                 {"hidden", t.shape.hidden},
+                 {"epochs", t.epochs},
+                 {"loss", lossName(t.loss)}};
+    j["samples"] = result.sampleCount;
+    // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
+    std::vector<double> err;
+    for (const VoxelTrainResult& v : result.voxels) err.push_back(std::round(v.heldOutRelMse * 1e6) / 1e6);
+    j["held_out_relmse"] = err;
+    return j.dump();
+}
+
+}  // namespace nrad

@@ -1,0 +1,52 @@
+// Baker: the whole bake of one scene: voxel grid, training samples, one network per occupied voxel
+// (trained in parallel), and the asset they make. Deterministic for a scene, settings and seed.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nrad/format.h>
+
+#include "baker/bake/trainer.h"
+#include "baker/bake/training_samples.h"
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct BakeSettings {
+    glm::uvec3 grid{3, 3, 3};
+    SampleSettings samples;
+    TrainSettings train;
+    format::WeightEncoding encoding = format::WeightEncoding::Float16;
+    bool metadata = true;
+};
+
+struct BakeTimings {
+    double setup = 0.0, sampling = 0.0, training = 0.0;
+};
+
+struct BakeResult {
+    format::Asset asset;
+    std::vector<VoxelTrainResult> voxels;  // occupied voxels, in index order
+    SampleStats sampleStats;
+    size_t sampleCount = 0;
+    double surfaceArea = 0.0;
+    BakeTimings timings;
+};
+
+struct BakeProgress {
+    std::function<void(double)> sampling;
+    std::function<void(double)> training;
+};
+
+BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {});
+
+// Compact JSON written into the asset's META section: only content that is the same for every identical
+// bake (tool, settings, scene hash, per-voxel held-out error), never timings.
+std::string assetMetadata(const Scene& scene, const BakeSettings& settings, const BakeResult& result);
+
+// FNV-1a 64-bit hash of the scene's geometry and materials as imported (what the bake depends on).
+uint64_t sceneHash(const Scene& scene);
+
+}  // namespace nrad

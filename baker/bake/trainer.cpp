@@ -1,0 +1,237 @@
+// Per-voxel training with Adam, early stopping on a held-out split, and failure recovery.
+#include "baker/bake/trainer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+#include "baker/render/sampler.h"
+
+namespace nrad {
+
+namespace {
+float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+}  // namespace
+
+const char* lossName(LossKind loss) {
+    switch (loss) {
+        case LossKind::L2: return "l2";
+        case LossKind::RelativeL2: return "relative-l2";
+        case LossKind::Log: return "log-l2";
+    }
+    return "?";
+}
+
+bool parseLoss(const std::string& name, LossKind& loss) {
+    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::Log})
+        if (name == lossName(k)) {
+            loss = k;
+            return true;
+        }
+    return false;
+}
+
+void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]) {
+    glm::vec3 q = grid.positionInVoxel(p, voxel);
+    in[0] = q.x;
+    in[1] = q.y;
+    in[2] = q.z;
+    in[3] = n.x;
+    in[4] = n.y;
+    in[5] = n.z;
+    in[6] = wo.x;
+    in[7] = wo.y;
+    in[8] = wo.z;
+}
+
+glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]) {
+    glm::vec3 v;
+    for (int c = 0; c < 3; ++c)
+        v[c] = transform == format::OutputTransform::Exponential ? std::max(0.0f, std::expm1(std::min(y[c], 80.0f)))
+                                                                 : std::max(0.0f, y[c]);
+    return scale * v;
+}
+
+double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& reference) {
+    double e = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        double d = double(prediction[c]) - double(reference[c]);
+        e += d * d / (double(reference[c]) * double(reference[c]) + 0.01);
+    }
+    return e / 3.0;
+}
+
+VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
+                            const TrainSettings& settings) {
+    auto start = std::chrono::steady_clock::now();
+    VoxelTrainResult result;
+    result.voxel = voxel;
+    result.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+    const size_t n = samples.size();
+    const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
+
+    // Inputs and targets; the held-out split is a hash of (seed, voxel, sample), at least one on each side.
+    std::vector<float> inputs(n * size_t(nIn));
+    std::vector<glm::vec3> targets(n);
+    std::vector<size_t> train, heldOut;
+    uint32_t splitSeed = hashCombine(hashCombine(settings.seed, 0x73706c74u), voxel);
+    for (size_t i = 0; i < n; ++i) {
+        encodeInput(grid, voxel, samples[i]->position, samples[i]->normal, samples[i]->wo, &inputs[i * size_t(nIn)]);
+        targets[i] = samples[i]->radiance;
+        bool hold = float(hashCombine(splitSeed, uint32_t(i)) >> 8) * 0x1p-24f < settings.holdoutFraction;
+        (hold ? heldOut : train).push_back(i);
+    }
+    if (train.empty() && !heldOut.empty()) {
+        train.push_back(heldOut.back());
+        heldOut.pop_back();
+    }
+    if (heldOut.empty() && train.size() >= 2) {
+        heldOut.push_back(train.back());
+        train.pop_back();
+    }
+    result.trainCount = train.size();
+    result.heldOutCount = heldOut.size();
+    const std::vector<size_t>& evalSet = heldOut.empty() ? train : heldOut;  // one sample: judged on itself
+
+    // Per-voxel scale: the mean training luminance, so that the network works with values near one.
+    double meanLum = 0.0;
+    for (size_t i : train) meanLum += std::max(0.0f, luminance(targets[i]));
+    meanLum = train.empty() ? 0.0 : meanLum / double(train.size());
+    result.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
+    const float invScale = 1.0f / result.scale;
+    auto normalizedTarget = [&](size_t i, int c) {
+        float t = targets[i][c] * invScale;
+        return settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
+    };
+
+    Mlp mlp(settings.shape);
+    MlpWorkspace ws;
+    std::vector<float> y(static_cast<size_t>(nOut)), dy(static_cast<size_t>(nOut)), grad(mlp.parameters().size());
+    auto evaluate = [&](const std::vector<size_t>& set) {
+        double e = 0.0;
+        for (size_t i : set) {
+            mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
+            e += relativeSquaredError(decodeOutput(result.transform, result.scale, y.data()), targets[i]);
+        }
+        return set.empty() ? 0.0 : e / double(set.size());
+    };
+
+    double bestOverall = std::numeric_limits<double>::infinity();
+    std::vector<float> bestOverallParams;
+    for (int attempt = 0; attempt < settings.maxAttempts; ++attempt) {
+        ++result.attempts;
+        uint64_t initSeed = (uint64_t(settings.seed) << 32) ^ (uint64_t(voxel) << 8) ^ uint64_t(attempt);
+        mlp.initialize(initSeed, settings.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
+        Adam adam(mlp.parameters().size(), settings.learningRate);
+        SplitMix64 order(initSeed ^ 0x5851f42d4c957f2dull);
+        std::vector<size_t> perm = train;
+        double best = std::numeric_limits<double>::infinity();
+        std::vector<float> bestParams = mlp.parameters();
+        std::vector<TrainCurvePoint> curve;
+        int sinceBest = 0, epoch = 0;
+        bool diverged = false;
+        for (; epoch < settings.epochs; ++epoch) {
+            for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
+            float lr = settings.learningRate * std::pow(0.1f, float(epoch) / float(std::max(1, settings.epochs)));
+            for (size_t b = 0; b < perm.size(); b += size_t(settings.batchSize)) {
+                size_t e = std::min(perm.size(), b + size_t(settings.batchSize));
+                std::fill(grad.begin(), grad.end(), 0.0f);
+                for (size_t k = b; k < e; ++k) {
+                    size_t i = perm[k];
+                    mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
+                    float weight = 1.0f;
+                    if (settings.loss == LossKind::RelativeL2) {
+                        glm::vec3 pred(std::max(0.0f, y[0]), std::max(0.0f, y[1]), std::max(0.0f, y[2]));
+                        float l = luminance(pred);
+                        weight = 1.0f / (l * l + 0.01f);
+                    }
+                    for (int c = 0; c < nOut; ++c) dy[size_t(c)] = 2.0f * weight * (y[size_t(c)] - normalizedTarget(i, c));
+                    mlp.backward(dy.data(), ws, grad.data());
+                }
+                float inv = 1.0f / float(e - b);
+                for (float& g : grad) g *= inv;
+                adam.step(mlp.parameters(), grad, lr);
+            }
+            if (!mlp.allFinite()) {
+                diverged = true;
+                break;
+            }
+            double err = evaluate(evalSet);
+            if (!std::isfinite(err)) {
+                diverged = true;
+                break;
+            }
+            if (epoch % std::max(1, settings.curveEvery) == 0)
+                curve.push_back({epoch, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), err});
+            if (err < best) {
+                best = err;
+                bestParams = mlp.parameters();
+                sinceBest = 0;
+            } else if (++sinceBest > settings.patience) {
+                break;
+            }
+        }
+        mlp.parameters() = bestParams;
+
+        // Did this attempt fail? Non-finite weights, every first-layer ReLU dead on every training input, or
+        // an output that does not depend on the input although the targets vary.
+        std::string failure;
+        if (diverged && !std::isfinite(best)) failure = "non-finite weights or error";
+        if (failure.empty() && !train.empty()) {
+            int width = settings.shape.hidden.front();
+            std::vector<bool> alive(size_t(width), false);
+            glm::dvec3 mean(0.0), mean2(0.0), tmean(0.0), tmean2(0.0);
+            for (size_t i : train) {
+                mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
+                for (int u = 0; u < width; ++u)
+                    if (ws.activations[1][size_t(u)] > 0.0f) alive[size_t(u)] = true;
+                glm::dvec3 p(y[0], y[1], y[2]), t(normalizedTarget(i, 0), normalizedTarget(i, 1), normalizedTarget(i, 2));
+                mean += p;
+                mean2 += p * p;
+                tmean += t;
+                tmean2 += t * t;
+            }
+            double m = double(train.size());
+            double predVar = glm::dot(mean2 / m - (mean / m) * (mean / m), glm::dvec3(1.0));
+            double targetVar = glm::dot(tmean2 / m - (tmean / m) * (tmean / m), glm::dvec3(1.0));
+            if (std::none_of(alive.begin(), alive.end(), [](bool a) { return a; }))
+                failure = "all hidden ReLUs dead";
+            else if (train.size() >= 8 && targetVar > 1e-4 && predVar < 1e-8 * targetVar)
+                failure = "constant output";
+        }
+        if (failure.empty()) {
+            result.curve = std::move(curve);
+            result.epochs = epoch;
+            bestOverallParams = mlp.parameters();
+            bestOverall = best;
+            break;
+        }
+        result.events.push_back("attempt " + std::to_string(attempt + 1) + ": " + failure + ", re-initialised");
+    }
+
+    if (bestOverallParams.empty()) {
+        // Every attempt failed: store a network that outputs the voxel's mean radiance, always finite.
+        result.fallback = true;
+        result.events.push_back("fallback: constant network with the voxel's mean radiance");
+        std::fill(mlp.parameters().begin(), mlp.parameters().end(), 0.0f);
+        glm::dvec3 mean(0.0);
+        for (size_t i : train) mean += glm::dvec3(targets[i]);
+        if (!train.empty()) mean /= double(train.size());
+        size_t outBias = mlp.parameters().size() - size_t(nOut);
+        for (int c = 0; c < nOut; ++c) {
+            float t = float(mean[c]) * invScale;
+            mlp.parameters()[outBias + size_t(c)] = settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
+        }
+        bestOverallParams = mlp.parameters();
+    }
+    mlp.parameters() = bestOverallParams;
+    result.params = bestOverallParams;
+    result.heldOutRelMse = evaluate(evalSet);
+    result.trainRelMse = evaluate(train);
+    (void)bestOverall;
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+}
+
+}  // namespace nrad

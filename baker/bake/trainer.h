@@ -1,0 +1,73 @@
+// Trainer: fits one voxel's network to its training samples. A network, a loss and the Adam optimizer
+// combined: held-out split for early stopping and the reported error, deterministic initialisation and
+// sample order from the seed, HDR-aware losses, detection of failed trainings (non-finite weights, dead
+// ReLUs, constant output) with re-initialisation, and a constant fallback so nothing invalid is ever kept.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <nrad/format.h>
+
+#include "baker/bake/network.h"
+#include "baker/bake/training_samples.h"
+#include "baker/bake/voxel_grid.h"
+
+namespace nrad {
+
+enum class LossKind {
+    L2,  // squared error on radiance / voxel scale
+    RelativeL2,  // squared error / (luminance of the prediction^2 + 0.01), prediction held constant
+    Log,  // squared error on log(1 + radiance / scale); the asset's output transform is then exponential
+};
+const char* lossName(LossKind loss);
+bool parseLoss(const std::string& name, LossKind& loss);
+
+struct TrainSettings {
+    NetworkShape shape;
+    int epochs = 1500;
+    int batchSize = 32;
+    float learningRate = 0.01f;  // decays exponentially to a tenth over the epochs
+    float holdoutFraction = 0.1f;
+    int patience = 300;  // epochs without a better held-out error before stopping
+    LossKind loss = LossKind::Log;
+    uint32_t seed = 0;
+    int maxAttempts = 3;
+    int curveEvery = 5;  // record the held-out error every N epochs
+};
+
+struct TrainCurvePoint {
+    int epoch;
+    double seconds;  // since this voxel's training started
+    double heldOutRelMse;
+};
+
+struct VoxelTrainResult {
+    uint32_t voxel = 0;
+    std::vector<float> params;
+    float scale = 1.0f;  // radiance = scale x transform(y)
+    format::OutputTransform transform = format::OutputTransform::ClampedLinear;
+    size_t trainCount = 0, heldOutCount = 0;
+    double heldOutRelMse = 0.0;  // mean over held-out samples and channels of (L - ref)^2 / (ref^2 + 0.01)
+    double trainRelMse = 0.0;
+    int epochs = 0;  // of the kept attempt
+    int attempts = 0;
+    bool fallback = false;  // every attempt failed: a constant network was stored
+    std::vector<std::string> events;  // what went wrong in failed attempts
+    std::vector<TrainCurvePoint> curve;
+    double seconds = 0.0;
+};
+
+// The network's nine inputs for a sample in `voxel`.
+void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]);
+// Radiance from the network's outputs.
+glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]);
+// relMSE of one prediction against its reference (mean over the three channels).
+double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& reference);
+
+VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
+                            const TrainSettings& settings);
+
+}  // namespace nrad

@@ -1,0 +1,150 @@
+// Training-sample generation: area-uniform points on clipped surface pieces, path-traced radiance.
+#include "baker/bake/training_samples.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <mutex>
+
+#include <tbb/parallel_for.h>
+
+#include "baker/render/surface.h"
+
+namespace nrad {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979323846f;
+
+// Streams of the sampler, one per purpose, so the point sequence does not depend on the path count.
+constexpr uint32_t kPointStream = 0x706f696eu;  // "poin"
+constexpr uint32_t kFloorStream = 0x666c6f6fu;  // "floo"
+constexpr uint32_t kPathStream = 0x70617468u;  // "path"
+
+size_t pickByCdf(const std::vector<double>& cdf, double u) {
+    size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), u * cdf.back()) - cdf.begin());
+    return std::min(i, cdf.size() - 1);
+}
+
+struct PointRequest {
+    uint32_t piece;
+    glm::vec2 uPoint;
+    glm::vec2 uDirection;
+    uint32_t pathStream;
+};
+
+}  // namespace
+
+std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
+                                                    const SurfacePieces& pieces, const SampleSettings& settings,
+                                                    SampleStats& stats, const std::function<void(double)>& progress) {
+    stats = SampleStats{};
+    stats.perVoxel.assign(grid.voxelCount(), 0);
+    std::vector<TrainingSample> samples;
+    if (pieces.pieces().empty()) return samples;
+
+    // Pass 1: points uniform by area over the whole surface. Pass 2: the floor, per voxel. Both are decided
+    // up front (cheap) so that the expensive path tracing runs as one parallel loop.
+    std::vector<PointRequest> requests;
+    std::vector<double> cdf;
+    cdf.reserve(pieces.pieces().size());
+    double acc = 0.0;
+    for (const SurfacePiece& p : pieces.pieces()) cdf.push_back(acc += p.area);
+    uint32_t pointStream = hashCombine(settings.seed, kPointStream);
+    std::vector<uint32_t> count(grid.voxelCount(), 0);
+    for (uint32_t i = 0; i < settings.points; ++i) {
+        Sampler s(pointStream, i);
+        float uPiece = s.get1D();
+        PointRequest r{uint32_t(pickByCdf(cdf, uPiece)), s.get2D(), s.get2D(), hashCombine(hashCombine(settings.seed, kPathStream), i)};
+        ++count[pieces.pieces()[r.piece].voxel];
+        requests.push_back(r);
+    }
+    stats.points = settings.points;
+    for (uint32_t v = 0; v < grid.voxelCount(); ++v) {
+        const std::vector<uint32_t>& own = pieces.piecesOf(v);
+        if (own.empty() || count[v] >= settings.minSamplesPerVoxel) continue;
+        std::vector<double> vcdf;
+        double vacc = 0.0;
+        for (uint32_t p : own) vcdf.push_back(vacc += pieces.pieces()[p].area);
+        uint32_t stream = hashCombine(hashCombine(settings.seed, kFloorStream), v);
+        for (uint32_t j = count[v]; j < settings.minSamplesPerVoxel; ++j) {
+            Sampler s(stream, j);
+            float uPiece = s.get1D();
+            PointRequest r{own[pickByCdf(vcdf, uPiece)], s.get2D(), s.get2D(),
+                           hashCombine(hashCombine(hashCombine(settings.seed, kPathStream), 0x80000000u | v), j)};
+            requests.push_back(r);
+            ++stats.floorPoints;
+        }
+    }
+
+    std::vector<TrainingSample> out(requests.size());
+    std::vector<uint8_t> valid(requests.size(), 0);
+    std::atomic<size_t> done{0};
+    std::mutex statsMutex;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), 8), [&](const tbb::blocked_range<size_t>& range) {
+        RayCounters counters;
+        uint64_t nonFinite = 0;
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const PointRequest& r = requests[i];
+            const SurfacePiece& piece = pieces.pieces()[r.piece];
+            float b1, b2;
+            glm::vec3 p = pieces.samplePiece(piece, r.uPoint, b1, b2);
+            // The hemisphere around the winding-side shading normal at the point.
+            const glm::uvec3& tri = scene.mesh.triangles[piece.triangle];
+            glm::vec3 ng = scene.mesh.geometricNormal(piece.triangle);
+            glm::vec3 n = (1.0f - b1 - b2) * scene.mesh.normals[tri.x] + b1 * scene.mesh.normals[tri.y] + b2 * scene.mesh.normals[tri.z];
+            float nl = glm::length(n);
+            n = (nl > 1e-6f && std::isfinite(nl)) ? n / nl : ng;
+            if (glm::dot(n, ng) < 0.0f) n = -n;
+            float z = r.uDirection.x, rad = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 2.0f * kPi * r.uDirection.y;
+            Frame frame = Frame::fromNormal(n);
+            glm::vec3 wo = glm::normalize(frame.toWorld(glm::vec3(rad * std::cos(phi), rad * std::sin(phi), z)));
+            Hit hit;
+            hit.t = 0.0f;
+            hit.triangle = piece.triangle;
+            hit.u = b1;
+            hit.v = b2;
+            SurfaceInteraction si = makeInteraction(scene, hit, -wo);
+            si.p = p;  // the exact sampled point (inside its voxel)
+            glm::dvec3 sum(0.0);
+            uint32_t finite = 0;
+            for (uint32_t j = 0; j < settings.paths; ++j) {
+                Sampler ps(r.pathStream, j);
+                glm::vec3 L = tracer.outgoingRadiance(si, ps, settings.maxDepth, counters);
+                if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) {
+                    sum += glm::dvec3(L);
+                    ++finite;
+                } else {
+                    ++nonFinite;
+                }
+            }
+            if (finite > 0) {
+                TrainingSample& t = out[i];
+                t.position = p;
+                t.normal = si.ns;
+                t.wo = wo;
+                t.radiance = glm::vec3(sum / double(finite));
+                t.voxel = piece.voxel;
+                valid[i] = 1;
+            }
+        }
+        size_t d = done += range.size();
+        if (progress) progress(double(d) / double(requests.size()));
+        std::lock_guard<std::mutex> lock(statsMutex);
+        stats.rays += counters;
+        stats.nonFinitePaths += nonFinite;
+    });
+
+    samples.reserve(out.size());
+    for (size_t i = 0; i < out.size(); ++i) {
+        if (!valid[i]) {
+            ++stats.droppedSamples;
+            continue;
+        }
+        ++stats.perVoxel[out[i].voxel];
+        samples.push_back(out[i]);
+    }
+    return samples;
+}
+
+}  // namespace nrad

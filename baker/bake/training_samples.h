@@ -1,0 +1,48 @@
+// Training samples (paper Sec. 5): surface points uniform by area (scrambled Sobol), one outgoing direction
+// each, uniform on the hemisphere around the shading normal, and the radiance L(x, wo) leaving it (full
+// transport) estimated by the path tracer with `paths` paths. Voxels with surface but too few samples get
+// extra points from their own surface (the per-voxel floor).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "baker/bake/voxel_grid.h"
+#include "baker/render/path_tracer.h"
+
+namespace nrad {
+
+struct TrainingSample {
+    glm::vec3 position;  // world space
+    glm::vec3 normal;  // unit shading normal, on the side of wo
+    glm::vec3 wo;  // unit, away from the surface
+    glm::vec3 radiance;  // mean of the finite path estimates
+    uint32_t voxel;
+};
+
+struct SampleSettings {
+    uint32_t points = 10000;
+    uint32_t paths = 512;
+    int maxDepth = 6;  // segments, counting the (virtual) one that reached the point; 0 = unbounded
+    uint32_t seed = 0;
+    uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area
+};
+
+struct SampleStats {
+    uint64_t points = 0;  // from the global, area-uniform pass
+    uint64_t floorPoints = 0;  // added to voxels below the floor
+    uint64_t nonFinitePaths = 0;  // path estimates that were NaN or Inf: dropped
+    uint64_t droppedSamples = 0;  // points whose every path estimate was non-finite
+    RayCounters rays;
+    std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
+};
+
+std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
+                                                    const SurfacePieces& pieces, const SampleSettings& settings,
+                                                    SampleStats& stats,
+                                                    const std::function<void(double)>& progress = {});
+
+}  // namespace nrad

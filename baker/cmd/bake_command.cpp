@@ -1,0 +1,250 @@
+// `nrad bake`: glTF scene -> .nrad asset.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "baker/bake/baker.h"
+#include "baker/cmd/commands.h"
+#include "baker/scene/gltf_loader.h"
+#include "baker/util/atomic_file.h"
+#include "baker/util/progress.h"
+#include "baker/util/threads.h"
+
+namespace nrad {
+
+namespace {
+
+struct BakeOptions {
+    std::string scene, output, config, stats;
+    std::string grid = "3", hidden = "9", loss = "log-l2", encoding = "fp16";
+    uint32_t points = 10000, paths = 512, seed = 0, minSamples = 64;
+    int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
+    float learningRate = 0.01f;
+    bool quiet = false, noMetadata = false;
+};
+
+bool parseGrid(const std::string& s, glm::uvec3& out) {
+    unsigned a, b, c;
+    char x1, x2, rest;
+    if (std::sscanf(s.c_str(), "%u%c%u%c%u%c", &a, &x1, &b, &x2, &c, &rest) == 5 && x1 == 'x' && x2 == 'x') {
+        out = {a, b, c};
+    } else if (std::sscanf(s.c_str(), "%u%c", &a, &rest) == 1) {
+        out = {a, a, a};
+    } else {
+        return false;
+    }
+    return out.x >= 1 && out.y >= 1 && out.z >= 1 && out.x <= 256 && out.y <= 256 && out.z <= 256;
+}
+
+bool parseHidden(const std::string& s, std::vector<int>& out) {
+    out.clear();
+    size_t at = 0;
+    while (at <= s.size()) {
+        size_t comma = s.find(',', at);
+        std::string part = s.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+        char* end = nullptr;
+        long v = std::strtol(part.c_str(), &end, 10);
+        if (part.empty() || *end != '\0' || v < 1 || v > long(format::kMaxHiddenWidth)) return false;
+        out.push_back(int(v));
+        if (comma == std::string::npos) break;
+        at = comma + 1;
+    }
+    return !out.empty() && out.size() <= format::kMaxHiddenLayers;
+}
+
+int usage(const std::string& what) {
+    std::fprintf(stderr, "nrad bake: %s\n", what.c_str());
+    return kExitUsage;
+}
+
+int runBake(BakeOptions o, CLI::App* cmd) {
+    // A config file supplies defaults; flags given on the command line win.
+    if (!o.config.empty()) {
+        nlohmann::json cfg;
+        try {
+            std::ifstream f(o.config);
+            if (!f) throw std::runtime_error("cannot open file");
+            cfg = nlohmann::json::parse(f);
+            if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
+            auto take = [&](const char* key, const char* flag, auto& value) {
+                if (cfg.contains(key) && cmd->count(flag) == 0) value = cfg.at(key).get<std::decay_t<decltype(value)>>();
+            };
+            static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
+                                          "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience"};
+            for (auto& [key, value] : cfg.items())
+                if (std::find(std::begin(known), std::end(known), key) == std::end(known))
+                    throw std::runtime_error("unknown key '" + key + "'");
+            if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
+                o.grid = std::to_string(cfg["grid"].get<int>());
+            else
+                take("grid", "--grid", o.grid);
+            take("points", "--points", o.points);
+            take("paths", "--paths", o.paths);
+            take("max_depth", "--max-depth", o.maxDepth);
+            if (cfg.contains("hidden") && cfg["hidden"].is_number_integer() && cmd->count("--hidden") == 0)
+                o.hidden = std::to_string(cfg["hidden"].get<int>());
+            else
+                take("hidden", "--hidden", o.hidden);
+            take("epochs", "--epochs", o.epochs);
+            take("seed", "--seed", o.seed);
+            take("batch_size", "--batch-size", o.batch);
+            take("patience", "--patience", o.patience);
+            take("learning_rate", "--learning-rate", o.learningRate);
+            take("loss", "--loss", o.loss);
+            take("encoding", "--encoding", o.encoding);
+            take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
+            return kExitBadInput;
+        }
+    }
+    BakeSettings s;
+    if (!parseGrid(o.grid, s.grid)) return usage("--grid " + o.grid + ": expected N or NxMxK with 1..256 voxels per axis");
+    if (!parseHidden(o.hidden, s.train.shape.hidden))
+        return usage("--hidden " + o.hidden + ": expected widths 1..256, comma-separated, at most 8 layers");
+    if (!parseLoss(o.loss, s.train.loss)) return usage("--loss " + o.loss + ": expected l2, relative-l2 or log-l2");
+    if (o.encoding == "fp16")
+        s.encoding = format::WeightEncoding::Float16;
+    else if (o.encoding == "fp32")
+        s.encoding = format::WeightEncoding::Float32;
+    else
+        return usage("--encoding " + o.encoding + ": expected fp16 or fp32");
+    if (o.points < 1 || o.paths < 1 || o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f))
+        return usage("--points, --paths, --epochs, --batch-size and --learning-rate must be positive, --max-depth >= 0");
+    s.samples.points = o.points;
+    s.samples.paths = o.paths;
+    s.samples.maxDepth = o.maxDepth;
+    s.samples.seed = o.seed;
+    s.samples.minSamplesPerVoxel = o.minSamples;
+    s.train.epochs = o.epochs;
+    s.train.batchSize = o.batch;
+    s.train.patience = o.patience;
+    s.train.learningRate = o.learningRate;
+    s.train.seed = o.seed;
+    s.metadata = !o.noMetadata;
+
+    ThreadScope threads(o.threads);
+    auto t0 = std::chrono::steady_clock::now();
+    Scene scene;
+    try {
+        scene = loadGltf(o.scene);
+    } catch (const SceneError& e) {
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitBadInput;
+    }
+    if (scene.mesh.triangleCount() == 0) {
+        std::fprintf(stderr, "nrad bake: %s: the scene has no triangles to bake\n", o.scene.c_str());
+        return kExitBadInput;
+    }
+    double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!o.quiet)
+        std::fprintf(stderr, "scene: %s: %zu triangles, %zu emissive, %zu punctual lights; grid %ux%ux%u\n", o.scene.c_str(),
+                     scene.mesh.triangleCount(), scene.emissiveTriangleCount(), scene.lights.size(), s.grid.x, s.grid.y, s.grid.z);
+    ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
+    BakeResult r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
+
+    auto t3 = std::chrono::steady_clock::now();
+    std::vector<uint8_t> bytes = format::encode(r.asset);
+    try {
+        writeBytesAtomically(o.output, bytes);
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitIo;
+    }
+    double writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t3).count();
+
+    double meanErr = 0.0, worstErr = 0.0;
+    uint32_t worstVoxel = 0;
+    size_t retrained = 0, fallbacks = 0;
+    for (const VoxelTrainResult& v : r.voxels) {
+        meanErr += v.heldOutRelMse;
+        if (v.heldOutRelMse >= worstErr) {
+            worstErr = v.heldOutRelMse;
+            worstVoxel = v.voxel;
+        }
+        retrained += v.attempts > 1 ? 1 : 0;
+        fallbacks += v.fallback ? 1 : 0;
+    }
+    if (!r.voxels.empty()) meanErr /= double(r.voxels.size());
+    for (const VoxelTrainResult& v : r.voxels)
+        for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
+    std::printf("baked %s -> %s: %zu bytes, %zu of %u voxels occupied, %zu samples (%llu floor, %llu dropped, %llu "
+                "non-finite paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
+                "time: load %.2f s, setup %.2f s, sampling %.2f s, training %.2f s, writing %.3f s\n",
+                o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), s.grid.x * s.grid.y * s.grid.z, r.sampleCount,
+                (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.droppedSamples,
+                (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
+                loadSeconds, r.timings.setup, r.timings.sampling, r.timings.training, writeSeconds);
+
+    if (!o.stats.empty()) {
+        nlohmann::json j;
+        j["scene"] = o.scene;
+        j["asset"] = o.output;
+        j["asset_bytes"] = bytes.size();
+        j["grid"] = {s.grid.x, s.grid.y, s.grid.z};
+        j["occupied_voxels"] = r.voxels.size();
+        j["samples"] = r.sampleCount;
+        j["floor_samples"] = r.sampleStats.floorPoints;
+        j["dropped_samples"] = r.sampleStats.droppedSamples;
+        j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
+        j["rays"] = r.sampleStats.rays.total();
+        j["surface_area"] = r.surfaceArea;
+        j["held_out_relmse"] = {{"mean", meanErr}, {"worst", worstErr}, {"worst_voxel", worstVoxel}};
+        j["seconds"] = {{"load", loadSeconds}, {"setup", r.timings.setup}, {"sampling", r.timings.sampling},
+                        {"training", r.timings.training}, {"writing", writeSeconds}};
+        j["settings"] = nlohmann::json::parse(assetMetadata(scene, s, r))["bake"];
+        nlohmann::json voxels = nlohmann::json::array();
+        for (const VoxelTrainResult& v : r.voxels) {
+            nlohmann::json curve = nlohmann::json::array();
+            for (const TrainCurvePoint& c : v.curve) curve.push_back({c.epoch, c.seconds, c.heldOutRelMse});
+            voxels.push_back({{"voxel", v.voxel}, {"train_samples", v.trainCount}, {"held_out_samples", v.heldOutCount},
+                              {"held_out_relmse", v.heldOutRelMse}, {"train_relmse", v.trainRelMse}, {"scale", v.scale},
+                              {"epochs", v.epochs}, {"attempts", v.attempts}, {"fallback", v.fallback},
+                              {"events", v.events}, {"seconds", v.seconds},
+                              {"curve_epoch_seconds_relmse", curve}});
+        }
+        j["voxels"] = voxels;
+        try {
+            writeTextAtomically(o.stats, j.dump(1) + "\n");
+        } catch (const IoError& e) {
+            std::fprintf(stderr, "nrad bake: %s\n", e.what());
+            return kExitIo;
+        }
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+std::function<int()> addBakeCommand(CLI::App& app) {
+    auto o = std::make_shared<BakeOptions>();
+    CLI::App* cmd = app.add_subcommand("bake", "Bake a glTF scene into a neural radiance asset (.nrad)");
+    cmd->add_option("scene", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
+    cmd->add_option("-o,--output", o->output, "Output asset (.nrad)")->required();
+    cmd->add_option("--grid", o->grid, "Voxel grid: N (cubic) or NxMxK (default 3)");
+    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 10000)");
+    cmd->add_option("--paths", o->paths, "Paths per training sample (default 512)");
+    cmd->add_option("--max-depth", o->maxDepth, "Path length in segments for training radiance; 0 = unbounded (default 6)");
+    cmd->add_option("--hidden", o->hidden, "Hidden layer widths, comma-separated (default 9)");
+    cmd->add_option("--epochs", o->epochs, "Maximum training epochs per voxel (default 1500)");
+    cmd->add_option("--batch-size", o->batch, "Mini-batch size (default 32)");
+    cmd->add_option("--patience", o->patience, "Stop a voxel after this many epochs without a better held-out error (default 300)");
+    cmd->add_option("--learning-rate", o->learningRate, "Adam learning rate at the start (default 0.01)");
+    cmd->add_option("--loss", o->loss, "l2, relative-l2 or log-l2 (default)");
+    cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
+    cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
+    cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
+    cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
+    cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");
+    cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
+    cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
+    cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
+    return [o, cmd]() { return runBake(*o, cmd); };
+}
+
+}  // namespace nrad
