@@ -119,3 +119,82 @@ TEST(Cli, RenderWritesExrAndPng) {
 
 }  // namespace
 }  // namespace nrad
+
+namespace nrad {
+namespace {
+
+std::string cornell() { return "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'"; }
+
+TEST(CliBake, BakesAndInfoDescribesTheAsset) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("bake " + cornell() + " -o '" + dir + "/a.nrad' --points 500 --paths 4 --epochs 20 --stats '" + dir +
+                      "/stats.json' -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("voxels occupied"), std::string::npos);
+    EXPECT_NE(r.output.find("held-out relMSE mean"), std::string::npos);
+    std::ifstream f(dir + "/stats.json");
+    nlohmann::json stats = nlohmann::json::parse(f);
+    EXPECT_EQ(stats["grid"], nlohmann::json({3, 3, 3}));
+    EXPECT_EQ(stats["voxels"].size(), stats["occupied_voxels"].get<size_t>());
+    EXPECT_GT(stats["asset_bytes"].get<size_t>(), 1000u);
+    EXPECT_TRUE(stats["seconds"].contains("sampling"));
+    RunResult info = run("info '" + dir + "/a.nrad'");
+    ASSERT_EQ(info.exitCode, 0) << info.output;
+    EXPECT_NE(info.output.find("grid: 3x3x3"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("network: 9-9-3"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("weights fp16"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("\"scene_hash\""), std::string::npos) << info.output;
+    // Only the asset and the stats: no temporary files.
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
+}
+
+TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
+    std::string dir = test::temporaryDirectory();
+    std::ofstream(dir + "/bake.json") << R"({"grid": "2x1x1", "points": 300, "paths": 2, "epochs": 10, "encoding": "fp32"})";
+    RunResult r = run("bake " + cornell() + " -o '" + dir + "/a.nrad' --config '" + dir + "/bake.json' --grid 2 -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    RunResult info = run("info '" + dir + "/a.nrad'");
+    EXPECT_NE(info.output.find("grid: 2x2x2"), std::string::npos) << info.output;  // the flag wins
+    EXPECT_NE(info.output.find("weights fp32"), std::string::npos) << info.output;  // from the file
+    std::ofstream(dir + "/bad.json") << R"({"points": 300, "colour": "red"})";
+    r = run("bake " + cornell() + " -o '" + dir + "/b.nrad' --config '" + dir + "/bad.json' -q");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("bad.json: unknown key 'colour'"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/b.nrad"));
+}
+
+TEST(CliBake, BadFlagsAndScenesWriteNothing) {
+    std::string dir = test::temporaryDirectory();
+    std::string out = " -o '" + dir + "/x.nrad' -q";
+    for (const char* flags : {"--grid 0", "--grid 2x2", "--grid 3x3x999", "--hidden 0", "--hidden 9,x", "--loss huber",
+                              "--encoding fp8", "--points 0", "--epochs 0", "--learning-rate -1", "--no-such-flag"}) {
+        RunResult r = run("bake " + cornell() + out + " " + flags);
+        EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
+    }
+    std::string bad = test::sourcePath("tests/data/malformed/index-out-of-range.gltf");
+    RunResult r = run("bake '" + bad + "'" + out);
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find(bad), std::string::npos) << r.output;
+    r = run("bake " + cornell() + " -o /nonexistent-dir/x.nrad --points 100 --paths 1 --epochs 2 -q");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(CliInfo, DamagedAssetsAreRejected) {
+    std::string dir = test::temporaryDirectory();
+    std::ifstream in(test::sourcePath("tests/data/golden/tiny.nrad"), std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_EQ(run("info '" + test::sourcePath("tests/data/golden/tiny.nrad") + "'").exitCode, 0);
+    bytes[300] ^= 0x01;
+    std::ofstream(dir + "/flipped.nrad", std::ios::binary) << bytes;
+    RunResult r = run("info '" + dir + "/flipped.nrad'");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("flipped.nrad: section CRC mismatch"), std::string::npos) << r.output;
+    std::ofstream(dir + "/short.nrad", std::ios::binary) << bytes.substr(0, 100);
+    r = run("info '" + dir + "/short.nrad'");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("truncated"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nrad

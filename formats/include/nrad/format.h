@@ -51,8 +51,8 @@ enum class WeightEncoding : uint32_t { Float32 = 0, Float16 = 1 };
 
 struct Header {  // 64 bytes at offset 0
     // 0: magic[8]; 8: u16 versionMajor; 10: u16 versionMinor; 12: u32 flags (0); 16: u32 headerSize (64);
-    // 20: u32 sectionCount; 24: u64 fileSize; 32: u64 sectionTableOffset; 40..59: reserved (0);
-    // 60: u32 CRC-32 of bytes 0..59.
+    // 20: u32 sectionCount; 24: u64 fileSize; 32: u64 sectionTableOffset; 40: u32 CRC-32 of the section
+    // table; 44..59: reserved (0); 60: u32 CRC-32 of bytes 0..59.
     uint16_t versionMajor = kVersionMajor;
     uint16_t versionMinor = kVersionMinor;
     uint32_t flags = 0;
@@ -279,7 +279,7 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     h.sectionCount = rd32(data + 20);
     h.fileSize = rd64(data + 24);
     h.sectionTableOffset = rd64(data + 32);
-    for (int i = 40; i < 60; ++i)
+    for (int i = 44; i < 60; ++i)
         if (data[i] != 0) return DecodeStatus::BadHeader;
     if (headerSize != kHeaderSize || h.flags != 0) return DecodeStatus::BadHeader;
     if (h.fileSize > size) return DecodeStatus::Truncated;
@@ -288,6 +288,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         return DecodeStatus::BadSectionTable;
     uint64_t tableEnd = h.sectionTableOffset + uint64_t(h.sectionCount) * kSectionRecordSize;
     if (tableEnd > size) return DecodeStatus::Truncated;
+    if (crc32(data + h.sectionTableOffset, size_t(tableEnd - h.sectionTableOffset)) != rd32(data + 40))
+        return DecodeStatus::BadSectionTable;
 
     const uint8_t* grid = nullptr;
     const uint8_t* topo = nullptr;
@@ -296,6 +298,7 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     const uint8_t* meta = nullptr;
     uint64_t gridSize = 0, topoSize = 0, voxlSize = 0, wghtSize = 0, metaSize = 0;
     uint64_t expectedOffset = (tableEnd + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
+    uint64_t previousEnd = tableEnd;
     for (uint32_t i = 0; i < h.sectionCount; ++i) {
         const uint8_t* r = data + h.sectionTableOffset + uint64_t(i) * kSectionRecordSize;
         SectionRecord s;
@@ -305,9 +308,13 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         s.size = rd64(r + 16);
         s.crc = rd32(r + 24);
         if (flags != 0 || rd32(r + 28) != 0) return DecodeStatus::BadSectionTable;
-        // Sections follow the table in order, each at the next aligned offset: no gaps, no overlap.
+        // Sections follow the table in order, each at the next aligned offset: no gaps, no overlap, and the
+        // alignment padding before a section is zero (no byte of the file escapes a check).
         if (s.offset != expectedOffset) return DecodeStatus::BadSectionTable;
         if (s.size > size || s.offset > size - s.size) return DecodeStatus::Truncated;
+        for (uint64_t pad = i == 0 ? tableEnd : previousEnd; pad < s.offset; ++pad)
+            if (data[pad] != 0) return DecodeStatus::BadSectionTable;
+        previousEnd = s.offset + s.size;
         if (crc32(data + s.offset, size_t(s.size)) != s.crc) return DecodeStatus::SectionCrcMismatch;
         expectedOffset = (s.offset + s.size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
         const uint8_t*& slot = s.type == kSectionGrid ? grid : s.type == kSectionTopology ? topo : s.type == kSectionVoxels ? voxl
@@ -322,7 +329,6 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         if (slot) return DecodeStatus::BadSectionTable;  // duplicated
         slot = data + s.offset;
         slotSize = s.size;
-        if (i + 1 == h.sectionCount && s.offset + s.size != size) return DecodeStatus::TrailingBytes;
     }
     {
         const uint8_t* last = data + h.sectionTableOffset + uint64_t(h.sectionCount - 1) * kSectionRecordSize;
@@ -481,6 +487,7 @@ inline std::vector<uint8_t> encode(const Asset& a) {
         out.insert(out.end(), sections[i].begin(), sections[i].end());
     }
     put64(out, 24, out.size());
+    put32(out, 40, crc32(out.data() + tableAt, sections.size() * kSectionRecordSize));
     put32(out, 60, crc32(out.data(), 60));
     return out;
 }

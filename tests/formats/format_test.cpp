@@ -1,0 +1,194 @@
+// The .nrad byte layout: golden bytes of a tiny asset, round trips, every truncated prefix, bad magic,
+// other versions, trailing bytes, flipped bytes caught by the CRCs, fp16 conversions, the voxel rule.
+#include <nrad/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+#include "support/test_paths.h"
+
+namespace nrad::format {
+namespace {
+
+Asset tinyAsset(WeightEncoding encoding = WeightEncoding::Float16) {
+    Asset a;
+    a.grid.lower[0] = a.grid.lower[1] = a.grid.lower[2] = 0.0f;
+    a.grid.upper[0] = 1.0f;
+    a.grid.upper[1] = 2.0f;
+    a.grid.upper[2] = 4.0f;
+    a.grid.dims[0] = 1;
+    a.grid.dims[1] = 1;
+    a.grid.dims[2] = 2;
+    a.topology.hiddenWidths = {2};
+    a.topology.weightEncoding = encoding;
+    a.topology.outputTransform = OutputTransform::Exponential;
+    a.voxels = {{1, 2.0f}};
+    size_t n = a.topology.parameterCount();  // 9*2 + 2 + 3*2 + 3 = 29
+    for (size_t i = 0; i < n; ++i) a.weights.push_back(float(int(i) - 14) * 0.25f);
+    a.metadata = "{\"k\":1}";
+    return a;
+}
+
+std::vector<uint8_t> readGolden() {
+    std::ifstream f(test::sourcePath("tests/data/golden/tiny.nrad"), std::ios::binary);
+    return std::vector<uint8_t>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+TEST(Format, ParameterCountOfThePaperNetwork) {
+    Topology t;
+    EXPECT_EQ(t.parameterCount(), 120u);  // 9*9 + 9 + 3*9 + 3
+}
+
+TEST(Format, GoldenBytes) {
+    std::vector<uint8_t> bytes = encode(tinyAsset());
+    std::vector<uint8_t> golden = readGolden();
+    ASSERT_FALSE(golden.empty()) << "tests/data/golden/tiny.nrad missing";
+    EXPECT_EQ(bytes, golden);
+    // Spot checks of the layout by hand: magic, version 1.0, header size, 5 sections, file size, table at 64.
+    const uint8_t magic[8] = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
+    EXPECT_EQ(std::memcmp(bytes.data(), magic, 8), 0);
+    EXPECT_EQ(bytes[8], 1);
+    EXPECT_EQ(bytes[9], 0);
+    EXPECT_EQ(bytes[10], 0);
+    EXPECT_EQ(bytes[16], 64);
+    EXPECT_EQ(bytes[20], 5);
+    EXPECT_EQ(uint64_t(bytes[24]) | (uint64_t(bytes[25]) << 8), bytes.size());
+    EXPECT_EQ(bytes[32], 64);
+    // First section record: GRID at offset 64 + 5 * 32 = 224, 40 bytes.
+    EXPECT_EQ(std::string(bytes.begin() + 64, bytes.begin() + 68), "GRID");
+    EXPECT_EQ(bytes[72], 224);
+    EXPECT_EQ(bytes[80], 40);
+    // Size: header 64 + table 160 + GRID 40 + TOPO 28 (+4 pad) + VOXL 12 (+4 pad) + WGHT 58 (+6 pad) + META 7.
+    EXPECT_EQ(bytes.size(), 64u + 160u + 40u + 32u + 16u + 64u + 7u);
+}
+
+TEST(Format, RoundTripFp16AndFp32) {
+    for (WeightEncoding enc : {WeightEncoding::Float16, WeightEncoding::Float32}) {
+        Asset a = tinyAsset(enc);
+        std::vector<uint8_t> bytes = encode(a);
+        Asset b;
+        ASSERT_EQ(decode(bytes.data(), bytes.size(), b), DecodeStatus::Ok);
+        EXPECT_EQ(b.grid.dims[2], 2u);
+        EXPECT_EQ(b.grid.upper[2], 4.0f);
+        EXPECT_EQ(b.topology.hiddenWidths, std::vector<uint32_t>{2});
+        EXPECT_EQ(b.topology.outputTransform, OutputTransform::Exponential);
+        EXPECT_EQ(b.topology.weightEncoding, enc);
+        ASSERT_EQ(b.voxels.size(), 1u);
+        EXPECT_EQ(b.voxels[0].index, 1u);
+        EXPECT_EQ(b.voxels[0].scale, 2.0f);
+        EXPECT_EQ(b.weights, a.weights);  // multiples of 1/4 are exact in fp16
+        EXPECT_EQ(b.metadata, "{\"k\":1}");
+    }
+}
+
+TEST(Format, EveryTruncatedPrefixIsRejected) {
+    std::vector<uint8_t> bytes = encode(tinyAsset());
+    for (size_t n = 0; n < bytes.size(); ++n) {
+        Asset out;
+        DecodeStatus s = decode(bytes.data(), n, out);
+        EXPECT_NE(s, DecodeStatus::Ok) << "prefix " << n;
+        if (n >= 64) {
+            EXPECT_EQ(s, DecodeStatus::Truncated) << "prefix " << n;
+        }
+    }
+}
+
+TEST(Format, BadMagicVersionAndTrailingBytes) {
+    std::vector<uint8_t> bytes = encode(tinyAsset());
+    Asset out;
+    std::vector<uint8_t> b = bytes;
+    b[0] = 'X';
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadMagic);
+    b = bytes;
+    b[4] = 0x0A;  // CR LF turned into LF by a text-mode transfer
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadMagic);
+    b = bytes;
+    b[8] = 2;  // a future major version
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::UnsupportedVersion);
+    b = bytes;
+    b[10] = 7;  // a newer minor version is accepted when its CRC is right
+    uint32_t crc = crc32(b.data(), 60);
+    for (int i = 0; i < 4; ++i) b[size_t(60 + i)] = uint8_t(crc >> (8 * i));
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    b = bytes;
+    b.push_back(0);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::TrailingBytes);
+}
+
+TEST(Format, EveryFlippedByteIsCaught) {
+    std::vector<uint8_t> bytes = encode(tinyAsset());
+    for (size_t i = 0; i < bytes.size(); ++i) {
+        std::vector<uint8_t> b = bytes;
+        b[i] ^= 0x10;
+        Asset out;
+        EXPECT_NE(decode(b.data(), b.size(), out), DecodeStatus::Ok) << "byte " << i;
+    }
+}
+
+TEST(Format, Crc32KnownValue) {
+    const char* s = "123456789";
+    EXPECT_EQ(crc32(reinterpret_cast<const uint8_t*>(s), 9), 0xCBF43926u);  // the standard check value
+}
+
+TEST(Format, HalfConversions) {
+    EXPECT_EQ(floatToHalf(1.0f), 0x3C00);
+    EXPECT_EQ(floatToHalf(-2.0f), 0xC000);
+    EXPECT_EQ(floatToHalf(65504.0f), 0x7BFF);
+    EXPECT_EQ(floatToHalf(1e9f), 0x7BFF);  // saturates, never Inf
+    EXPECT_EQ(floatToHalf(5.9604645e-8f), 0x0001);  // smallest subnormal
+    EXPECT_EQ(floatToHalf(1.0f + 1.0f / 2048.0f), 0x3C00);  // halfway: round to even
+    EXPECT_EQ(floatToHalf(1.0f + 3.0f / 2048.0f), 0x3C02);
+    EXPECT_EQ(halfToFloat(0x3555), 0.333251953125f);
+    for (uint32_t h = 0; h < 0x7C00; ++h) ASSERT_EQ(floatToHalf(halfToFloat(uint16_t(h))), h) << h;
+}
+
+TEST(Format, VoxelRuleOnBorders) {
+    Grid g;
+    g.lower[0] = g.lower[1] = g.lower[2] = 0.0f;
+    g.upper[0] = g.upper[1] = g.upper[2] = 3.0f;
+    g.dims[0] = g.dims[1] = g.dims[2] = 3;
+    EXPECT_EQ(voxelCoordinate(0.0f, 0.0f, 3.0f, 3), 0);
+    EXPECT_EQ(voxelCoordinate(1.0f, 0.0f, 3.0f, 3), 1);  // an interior border belongs to the voxel above
+    EXPECT_EQ(voxelCoordinate(3.0f, 0.0f, 3.0f, 3), 2);  // the upper face belongs to the last voxel
+    EXPECT_EQ(voxelCoordinate(-1e-6f, 0.0f, 3.0f, 3), -1);
+    EXPECT_EQ(voxelCoordinate(std::numeric_limits<float>::quiet_NaN(), 0.0f, 3.0f, 3), -1);
+    float p[3] = {2.5f, 0.5f, 1.5f};
+    EXPECT_EQ(voxelIndex(g, p), 2 + 3 * (0 + 3 * 1));
+    int c[3] = {2, 0, 1};
+    float q[3];
+    positionInVoxel(g, p, c, q);
+    EXPECT_FLOAT_EQ(q[0], 0.0f);
+    EXPECT_FLOAT_EQ(q[1], 0.0f);
+    EXPECT_FLOAT_EQ(q[2], 0.0f);
+}
+
+TEST(Format, DecoderRejectsInvalidContent) {
+    Asset out;
+    auto reencode = [](Asset a) { return encode(a); };
+    Asset a = tinyAsset();
+    a.voxels[0].index = 2;  // outside a grid of 2 voxels
+    std::vector<uint8_t> b = reencode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadVoxels);
+    a = tinyAsset(WeightEncoding::Float32);
+    a.weights[3] = std::numeric_limits<float>::infinity();
+    b = reencode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadWeights);
+    a = tinyAsset();
+    a.weights.pop_back();
+    b = reencode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadWeights);
+    a = tinyAsset();
+    a.grid.upper[1] = a.grid.lower[1];
+    b = reencode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadGrid);
+    a = tinyAsset();
+    a.topology.hiddenWidths = {0};
+    b = reencode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTopology);
+}
+
+}  // namespace
+}  // namespace nrad::format
