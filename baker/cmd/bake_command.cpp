@@ -10,7 +10,6 @@
 
 #include "baker/bake/baker.h"
 #include "baker/cmd/commands.h"
-#include "baker/scene/gltf_loader.h"
 #include "baker/util/atomic_file.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"
@@ -131,20 +130,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
-    try {
-        scene = loadGltf(o.scene);
-    } catch (const SceneError& e) {
-        std::fprintf(stderr, "nrad bake: %s\n", e.what());
-        return kExitBadInput;
-    }
-    if (scene.mesh.triangleCount() == 0) {
-        std::fprintf(stderr, "nrad bake: %s: the scene has no triangles to bake\n", o.scene.c_str());
-        return kExitBadInput;
-    }
+    if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene)) return code;
     double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!o.quiet)
-        std::fprintf(stderr, "scene: %s: %zu triangles, %zu emissive, %zu punctual lights; grid %ux%ux%u\n", o.scene.c_str(),
-                     scene.mesh.triangleCount(), scene.emissiveTriangleCount(), scene.lights.size(), s.grid.x, s.grid.y, s.grid.z);
     ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
     BakeResult r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
 

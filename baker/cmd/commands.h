@@ -1,7 +1,11 @@
 // The `nrad` subcommands and the exit codes they share (documented in docs/usage.md).
 #pragma once
 
+#include <string>
+
 #include <CLI/CLI.hpp>
+
+#include "baker/scene/scene.h"
 
 namespace nrad {
 
@@ -12,6 +16,11 @@ enum ExitCode : int {
     kExitBadInput = 3,  // the scene (or another input file) is unreadable or invalid
     kExitIo = 4,  // an output could not be written
 };
+
+// Loads the scene for command `command`; on failure prints "nrad COMMAND: FILE: problem" and returns
+// kExitBadInput, else kExitOk. A scene without triangles is a failure too. Unless quiet, prints the import
+// summary and the importer's warnings on stderr.
+int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene);
 
 // Each registers its subcommand; the returned callback runs it and returns an exit code.
 std::function<int()> addRenderCommand(CLI::App& app);

@@ -11,7 +11,6 @@
 #include "baker/render/image_io.h"
 #include "baker/render/light_sampler.h"
 #include "baker/render/path_tracer.h"
-#include "baker/scene/gltf_loader.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"
 
@@ -33,16 +32,6 @@ struct RenderOptions {
     bool quiet = false;
 };
 
-void printImportSummary(const Scene& scene) {
-    const ImportStats& s = scene.stats;
-    std::fprintf(stderr, "scene: %s: %zu triangles (%zu read, %zu degenerate dropped), %zu materials, %zu textures, "
-                         "%zu emissive triangles, %zu punctual lights, %zu cameras\n",
-                 scene.sourcePath.c_str(), scene.mesh.triangleCount(), s.trianglesRead, s.degenerateTrianglesDropped,
-                 scene.materials.size(), scene.textures.size(), scene.emissiveTriangleCount(), scene.lights.size(),
-                 scene.cameras.size());
-    for (const std::string& w : s.warnings) std::fprintf(stderr, "warning: %s: %s\n", scene.sourcePath.c_str(), w.c_str());
-}
-
 int runRender(const RenderOptions& o) {
     for (const std::string& out : o.outputs)
         if (!isSupportedImagePath(out)) {
@@ -52,17 +41,7 @@ int runRender(const RenderOptions& o) {
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
-    try {
-        scene = loadGltf(o.scene);
-    } catch (const SceneError& e) {
-        std::fprintf(stderr, "nrad render: %s\n", e.what());
-        return kExitBadInput;
-    }
-    if (!o.quiet) printImportSummary(scene);
-    if (scene.mesh.triangleCount() == 0) {
-        std::fprintf(stderr, "nrad render: %s: the scene has no triangles to render\n", o.scene.c_str());
-        return kExitBadInput;
-    }
+    if (int code = loadSceneForCommand("render", o.scene, o.quiet, scene)) return code;
     Camera camera;
     if (o.camera >= 0) {
         if (size_t(o.camera) >= scene.cameras.size()) {

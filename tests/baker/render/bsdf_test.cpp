@@ -60,6 +60,15 @@ const Case kCases[] = {
     {0.5f, 0.4f, 1.0f, glm::vec3(0.9f)},    {0.0f, 1.0f, 0.0f, glm::vec3(0.6f)},
 };
 
+BsdfParams paramsOf(const Case& c) {
+    BsdfParams p;
+    p.metallic = c.metallic;
+    p.roughness = c.roughness;
+    p.specular = c.specular;
+    p.baseColor = c.base;
+    return p;
+}
+
 TEST(Bsdf, LambertianAlbedoIsTheBaseColour) {
     BsdfParams p;
     p.baseColor = glm::vec3(0.2f, 0.5f, 0.9f);
@@ -88,12 +97,7 @@ TEST(Bsdf, PdfIntegratesToTheFractionOfValidSamples) {
     std::mt19937 rng(1);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (const Case& c : kCases) {
-        BsdfParams p;
-        p.metallic = c.metallic;
-        p.roughness = c.roughness;
-        p.specular = c.specular;
-        p.baseColor = c.base;
-        Bsdf bsdf = makeBsdf(p);
+        Bsdf bsdf = makeBsdf(paramsOf(c));
         for (double theta : {0.0, 0.8, 1.3}) {
             glm::vec3 wo = dirFromAngles(theta, 1.0);
             int n = c.roughness < 0.35f ? 2048 : 512;
@@ -124,12 +128,7 @@ TEST(Bsdf, SampledDirectionsFollowThePdf) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (const Case& c : kCases) {
-        BsdfParams p;
-        p.metallic = c.metallic;
-        p.roughness = c.roughness;
-        p.specular = c.specular;
-        p.baseColor = c.base;
-        Bsdf bsdf = makeBsdf(p);
+        Bsdf bsdf = makeBsdf(paramsOf(c));
         glm::vec3 wo = dirFromAngles(0.7, 0.4);
         std::vector<double> observed(kThetaBins * kPhiBins, 0.0), expected(kThetaBins * kPhiBins, 0.0);
         int valid = 0;
@@ -185,12 +184,7 @@ TEST(Bsdf, SampleWeightMatchesEvalOverPdf) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (const Case& c : kCases) {
-        BsdfParams p;
-        p.metallic = c.metallic;
-        p.roughness = c.roughness;
-        p.specular = c.specular;
-        p.baseColor = c.base;
-        Bsdf bsdf = makeBsdf(p);
+        Bsdf bsdf = makeBsdf(paramsOf(c));
         glm::vec3 wo = dirFromAngles(0.9, 2.0);
         for (int i = 0; i < 1000; ++i) {
             BsdfSample s = bsdf.sample(wo, u(rng), {u(rng), u(rng)});
@@ -206,12 +200,7 @@ TEST(Bsdf, Reciprocity) {
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     for (const Case& c : kCases) {
-        BsdfParams p;
-        p.metallic = c.metallic;
-        p.roughness = c.roughness;
-        p.specular = c.specular;
-        p.baseColor = c.base;
-        Bsdf bsdf = makeBsdf(p);
+        Bsdf bsdf = makeBsdf(paramsOf(c));
         for (int i = 0; i < 500; ++i) {
             glm::vec3 a = dirFromAngles(std::acos(u(rng)), 2 * kPi * u(rng));
             glm::vec3 b = dirFromAngles(std::acos(u(rng)), 2 * kPi * u(rng));
@@ -223,10 +212,7 @@ TEST(Bsdf, Reciprocity) {
 
 TEST(Bsdf, WhiteFurnaceEnergyAtMostOneAndSamplingAgreesWithQuadrature) {
     for (const Case& c : kCases) {
-        BsdfParams p;
-        p.metallic = c.metallic;
-        p.roughness = c.roughness;
-        p.specular = c.specular;
+        BsdfParams p = paramsOf(c);
         p.baseColor = glm::vec3(1.0f);  // white furnace
         Bsdf bsdf = makeBsdf(p);
         for (double theta : {0.0, 0.7, 1.2, 1.45}) {
