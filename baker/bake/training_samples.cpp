@@ -124,7 +124,10 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 t.normal = si.ns;
                 t.wo = wo;
                 t.radiance = glm::vec3(sum / double(finite));
-                t.voxel = piece.voxel;
+                // The voxel the runtime will look up for p (the format's rule): a point on a border plane
+                // belongs to the voxel above it, whichever piece it was sampled from.
+                int64_t voxel = grid.voxelOf(p);
+                t.voxel = voxel >= 0 ? uint32_t(voxel) : piece.voxel;
                 valid[i] = 1;
             }
         }

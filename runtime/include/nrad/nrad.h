@@ -1,0 +1,142 @@
+/* libnrad: load neural radiance assets (.nrad) and evaluate the radiance they store.
+ *
+ * The whole public C API (usable from C99 and C++). It depends on nothing but the C/C++ standard library.
+ *
+ * - Handles are opaque. Every function returns an NradStatus (or a plain value for simple queries) and
+ *   never lets an exception or a signal escape; nradStatusString() describes each status.
+ * - Loading is safe on untrusted input: every byte used is validated (magic, version, sizes and offsets
+ *   against the buffer, counts, CRCs, finite weights). A damaged file gives a status, never undefined
+ *   behaviour.
+ * - Evaluation is thread-safe: any number of threads may evaluate the same asset concurrently. Loading and
+ *   releasing are not concurrent with evaluation of the same handle.
+ * - Radiance is in the scene's units (see the baker's docs/lights.md); directions point away from the
+ *   surface, towards the viewer.
+ */
+#ifndef NRAD_NRAD_H
+#define NRAD_NRAD_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define NRAD_VERSION_MAJOR 0
+#define NRAD_VERSION_MINOR 1
+#define NRAD_VERSION_PATCH 0
+
+typedef struct NradAsset_* NradAsset;
+
+typedef enum NradStatus {
+    NRAD_OK = 0,
+    NRAD_ERROR_INVALID_ARGUMENT = 1,  /* a null pointer or a bad flag */
+    NRAD_ERROR_OUT_OF_MEMORY = 2,
+    NRAD_ERROR_IO = 3,                /* the file could not be opened or read */
+    NRAD_ERROR_TRUNCATED = 4,         /* the data ends before a structure it announces */
+    NRAD_ERROR_NOT_AN_ASSET = 5,      /* bad magic */
+    NRAD_ERROR_UNSUPPORTED_VERSION = 6,
+    NRAD_ERROR_CORRUPT = 7,           /* a CRC mismatch, trailing bytes, or an invalid section table */
+    NRAD_ERROR_INVALID_CONTENT = 8,   /* a grid, topology, voxel table or weight that is not valid */
+    NRAD_ERROR_UNSUPPORTED_KERNEL = 9,/* nradSelectKernel: this CPU cannot run that kernel */
+    NRAD_ERROR_INTERNAL = 10
+} NradStatus;
+
+/* A static, human-readable description of a status (never null). */
+const char* nradStatusString(NradStatus status);
+
+/* ----- loading --------------------------------------------------------------------------------------- */
+
+typedef enum NradLoadFlags {
+    NRAD_LOAD_COPY = 0,   /* the asset keeps its own copy; the caller's buffer may be freed after the call */
+    NRAD_LOAD_BORROW = 1  /* the caller's buffer must stay alive and unchanged until nradReleaseAsset */
+} NradLoadFlags;
+
+/* Loads an asset from `size` bytes at `data`. On success *asset is a new handle; on failure it is null
+ * and, if `message` is not null, up to `messageSize` bytes of an explanation are written there
+ * (NUL-terminated). Safe on untrusted input. */
+NradStatus nradLoadFromMemory(const void* data, size_t size, uint32_t flags, NradAsset* asset, char* message,
+                              size_t messageSize);
+/* Loads an asset from a file (read whole, then as nradLoadFromMemory with NRAD_LOAD_COPY). */
+NradStatus nradLoadFromFile(const char* path, NradAsset* asset, char* message, size_t messageSize);
+/* Releases a handle; null is allowed. */
+void nradReleaseAsset(NradAsset asset);
+
+/* ----- queries --------------------------------------------------------------------------------------- */
+
+#define NRAD_MAX_HIDDEN_LAYERS 8
+
+typedef struct NradAssetInfo {
+    uint32_t formatVersionMajor, formatVersionMinor;
+    float gridLower[3], gridUpper[3];
+    uint32_t gridDims[3];
+    uint32_t occupiedVoxels;
+    uint32_t inputs, outputs;
+    uint32_t hiddenLayers;
+    uint32_t hiddenWidths[NRAD_MAX_HIDDEN_LAYERS];
+    uint32_t parametersPerNetwork;
+    uint32_t weightEncoding;   /* 0 = fp32, 1 = fp16 (as stored in the file) */
+    uint32_t outputTransform;  /* 0 = scale max(0, y), 1 = scale (exp(y) - 1) */
+    uint64_t fileBytes;        /* size of the asset data */
+    uint64_t memoryBytes;      /* memory held by the handle */
+} NradAssetInfo;
+
+NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
+/* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels. */
+NradStatus nradGetOccupiedVoxel(NradAsset asset, uint32_t i, uint32_t* voxelIndex);
+/* The metadata JSON (not NUL-terminated) and its length; empty if the asset has none. Valid while the
+ * handle lives. */
+NradStatus nradGetMetadata(NradAsset asset, const char** json, size_t* length);
+
+/* ----- evaluation ------------------------------------------------------------------------------------ */
+
+/* Per-point result flags. */
+enum {
+    NRAD_POINT_OK = 0,
+    NRAD_POINT_OUTSIDE_GRID = 1,   /* the position is outside the asset's grid: radiance 0 */
+    NRAD_POINT_EMPTY_VOXEL = 2,    /* the voxel has no network (no surface was baked there): radiance 0 */
+    NRAD_POINT_INVALID_INPUT = 4   /* a non-finite input value: radiance 0 */
+};
+
+/* Radiance leaving `position` (world space) with shading normal `normal` towards `direction` (both unit
+ * length, pointing away from the surface). Writes rgb[3]; `pointFlags` may be null. */
+NradStatus nradEvaluate(NradAsset asset, const float position[3], const float normal[3], const float direction[3],
+                        float rgb[3], uint32_t* pointFlags);
+
+/* Batch, interleaved layout: positions, normals, directions and rgb are `count` x 3 floats (x, y, z, ...).
+ * `pointFlags` (count bytes) may be null. Points are grouped by voxel internally where that is faster. */
+NradStatus nradEvaluateBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+                             const float* directions, float* rgb, uint8_t* pointFlags);
+
+/* Batch, structure-of-arrays layout: each pointer is `count` floats. */
+typedef struct NradBatchSoA {
+    const float* px; const float* py; const float* pz;
+    const float* nx; const float* ny; const float* nz;
+    const float* dx; const float* dy; const float* dz;
+    float* r; float* g; float* b;
+    uint8_t* pointFlags; /* may be null */
+} NradBatchSoA;
+NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const NradBatchSoA* batch);
+
+/* ----- kernels --------------------------------------------------------------------------------------- */
+
+typedef enum NradKernel {
+    NRAD_KERNEL_AUTO = 0,    /* the fastest this CPU supports (the default) */
+    NRAD_KERNEL_SCALAR = 1,  /* plain C++, any CPU: the reference */
+    NRAD_KERNEL_AVX2 = 2,    /* x86-64 with AVX2 and FMA */
+    NRAD_KERNEL_AVX512 = 3   /* x86-64 with AVX-512F */
+} NradKernel;
+
+/* Chooses the evaluation kernel for this process (for testing and measurement). Fails with
+ * NRAD_ERROR_UNSUPPORTED_KERNEL if this CPU cannot run it. Not concurrent with evaluation. */
+NradStatus nradSelectKernel(NradKernel kernel);
+/* The kernel evaluation uses now (never NRAD_KERNEL_AUTO). */
+NradKernel nradActiveKernel(void);
+/* Nonzero if this CPU and build can run `kernel`. */
+int nradKernelSupported(NradKernel kernel);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* NRAD_NRAD_H */

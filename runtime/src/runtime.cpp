@@ -1,0 +1,410 @@
+// libnrad: loading (through the format's validating decoder), queries, and batched evaluation grouped by
+// voxel with run-time kernel dispatch. Every entry point catches everything: nothing crosses the C API.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <new>
+#include <string>
+#include <vector>
+
+#include <nrad/format.h>
+#include <nrad/nrad.h>
+
+#include "kernels.h"
+
+using namespace nrad;
+
+struct NradAsset_ {
+    format::Asset asset;  // decoded; weights already in fp32
+    uint64_t fileBytes = 0;
+    std::string metadataCopy;  // NRAD_LOAD_COPY
+    const char* metadata = nullptr;  // points into metadataCopy or, for NRAD_LOAD_BORROW, the caller's buffer
+    size_t metadataLength = 0;
+    uint32_t paramsPerNetwork = 0;
+    std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
+};
+
+namespace {
+
+// ----- kernels and dispatch ----------------------------------------------------------------------------
+
+bool cpuHas(NradKernel k) {
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+    __builtin_cpu_init();
+    if (k == NRAD_KERNEL_AVX2) return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    if (k == NRAD_KERNEL_AVX512) return __builtin_cpu_supports("avx512f");
+#endif
+    return k == NRAD_KERNEL_SCALAR;
+}
+
+NradKernel bestKernel() {
+    if (cpuHas(NRAD_KERNEL_AVX512)) return NRAD_KERNEL_AVX512;
+    if (cpuHas(NRAD_KERNEL_AVX2)) return NRAD_KERNEL_AVX2;
+    return NRAD_KERNEL_SCALAR;
+}
+
+std::atomic<int> gKernel{NRAD_KERNEL_AUTO};
+
+NradKernel activeKernel() {
+    int k = gKernel.load(std::memory_order_relaxed);
+    if (k == NRAD_KERNEL_AUTO) {
+        k = bestKernel();
+        gKernel.store(k, std::memory_order_relaxed);
+    }
+    return NradKernel(k);
+}
+
+rt::ChunkKernel kernelFunction(NradKernel k) {
+#if defined(__x86_64__) || defined(_M_X64)
+    if (k == NRAD_KERNEL_AVX512) return rt::evalChunkAvx512;
+    if (k == NRAD_KERNEL_AVX2) return rt::evalChunkAvx2;
+#endif
+    (void)k;
+    return rt::evalChunkScalar;
+}
+
+// ----- loading -------------------------------------------------------------------------------------------
+
+NradStatus statusOf(format::DecodeStatus s) {
+    switch (s) {
+        case format::DecodeStatus::Ok: return NRAD_OK;
+        case format::DecodeStatus::Truncated: return NRAD_ERROR_TRUNCATED;
+        case format::DecodeStatus::BadMagic: return NRAD_ERROR_NOT_AN_ASSET;
+        case format::DecodeStatus::UnsupportedVersion: return NRAD_ERROR_UNSUPPORTED_VERSION;
+        case format::DecodeStatus::BadHeader:
+        case format::DecodeStatus::HeaderCrcMismatch:
+        case format::DecodeStatus::BadSectionTable:
+        case format::DecodeStatus::SectionCrcMismatch:
+        case format::DecodeStatus::TrailingBytes: return NRAD_ERROR_CORRUPT;
+        default: return NRAD_ERROR_INVALID_CONTENT;
+    }
+}
+
+void writeMessage(char* message, size_t size, const std::string& text) {
+    if (!message || size == 0) return;
+    size_t n = std::min(size - 1, text.size());
+    std::memcpy(message, text.data(), n);
+    message[n] = '\0';
+}
+
+NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, char* message, size_t messageSize) {
+    if (!out) return NRAD_ERROR_INVALID_ARGUMENT;
+    *out = nullptr;
+    if ((!data && size > 0) || flags > NRAD_LOAD_BORROW) {
+        writeMessage(message, messageSize, "invalid argument");
+        return NRAD_ERROR_INVALID_ARGUMENT;
+    }
+    auto* a = new NradAsset_();
+    format::DecodeStatus st = format::decode(static_cast<const uint8_t*>(data), size, a->asset);
+    if (st != format::DecodeStatus::Ok) {
+        delete a;
+        writeMessage(message, messageSize, format::decodeStatusString(st));
+        return statusOf(st);
+    }
+    a->fileBytes = size;
+    a->paramsPerNetwork = uint32_t(a->asset.topology.parameterCount());
+    if (flags == NRAD_LOAD_COPY) {
+        a->metadataCopy.swap(a->asset.metadata);
+        a->metadata = a->metadataCopy.data();
+        a->metadataLength = a->metadataCopy.size();
+    } else if (!a->asset.metadata.empty()) {
+        // Find the metadata in the caller's buffer: it is the META section's bytes.
+        const std::string& m = a->asset.metadata;
+        const uint8_t* bytes = static_cast<const uint8_t*>(data);
+        a->metadataLength = m.size();
+        a->metadata = reinterpret_cast<const char*>(bytes + size - m.size());  // META is written last
+        if (std::memcmp(a->metadata, m.data(), m.size()) != 0) {  // not last (a foreign writer): keep a copy
+            a->metadataCopy = m;
+            a->metadata = a->metadataCopy.data();
+        }
+        std::string().swap(a->asset.metadata);
+    }
+    // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
+    uint64_t voxels = a->asset.grid.voxelCount();
+    if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
+        a->denseLookup.assign(size_t(voxels), -1);
+        for (size_t i = 0; i < a->asset.voxels.size(); ++i) a->denseLookup[a->asset.voxels[i].index] = int32_t(i);
+    }
+    *out = a;
+    writeMessage(message, messageSize, "ok");
+    return NRAD_OK;
+}
+
+// ----- evaluation ------------------------------------------------------------------------------------------
+
+// Network of the voxel holding p (or -1 with a flag), and p's position inside that voxel.
+int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& flag) {
+    const format::Grid& g = a.asset.grid;
+    int c[3];
+    for (int k = 0; k < 3; ++k) {
+        c[k] = format::voxelCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]);
+        if (c[k] < 0) {
+            flag = NRAD_POINT_OUTSIDE_GRID;
+            return -1;
+        }
+    }
+    uint32_t voxel = uint32_t(c[0]) + g.dims[0] * (uint32_t(c[1]) + g.dims[1] * uint32_t(c[2]));
+    int32_t net = -1;
+    if (!a.denseLookup.empty()) {
+        net = a.denseLookup[voxel];
+    } else {
+        auto it = std::lower_bound(a.asset.voxels.begin(), a.asset.voxels.end(), voxel,
+                                   [](const format::VoxelEntry& e, uint32_t v) { return e.index < v; });
+        if (it != a.asset.voxels.end() && it->index == voxel) net = int32_t(it - a.asset.voxels.begin());
+    }
+    if (net < 0) {
+        flag = NRAD_POINT_EMPTY_VOXEL;
+        return -1;
+    }
+    format::positionInVoxel(g, p, c, local);
+    for (int k = 0; k < 3; ++k) local[k] = std::min(1.0f, std::max(-1.0f, local[k]));
+    flag = NRAD_POINT_OK;
+    return net;
+}
+
+bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+// Where a batch's points come from and go to: interleaved (stride 3) or SoA (stride 1, separate arrays).
+struct BatchView {
+    const float* p[3];
+    const float* n[3];
+    const float* d[3];
+    float* out[3];
+    size_t stride;
+    uint8_t* flags;
+};
+
+struct Scratch {
+    std::vector<int32_t> network;
+    std::vector<float> local;  // 3 per point
+    std::vector<uint32_t> order, start;
+};
+
+NradStatus evaluateBatch(const NradAsset_& a, size_t count, const BatchView& v) {
+    thread_local Scratch s;
+    const size_t nets = a.asset.voxels.size();
+    s.network.resize(count);
+    s.local.resize(count * 3);
+    // 1. Locate every point; invalid and unlocated points get zero radiance and their flag.
+    for (size_t i = 0; i < count; ++i) {
+        size_t at = i * v.stride;
+        float p[3] = {v.p[0][at], v.p[1][at], v.p[2][at]};
+        float n[3] = {v.n[0][at], v.n[1][at], v.n[2][at]};
+        float d[3] = {v.d[0][at], v.d[1][at], v.d[2][at]};
+        uint8_t flag = NRAD_POINT_OK;
+        int32_t net = -1;
+        if (!finite3(p) || !finite3(n) || !finite3(d))
+            flag = NRAD_POINT_INVALID_INPUT;
+        else
+            net = locate(a, p, &s.local[i * 3], flag);
+        s.network[i] = net;
+        if (v.flags) v.flags[i] = flag;
+        if (net < 0) v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
+    }
+    // 2. Group the points by network (counting sort), so every chunk runs one network.
+    s.start.assign(nets + 1, 0);
+    for (size_t i = 0; i < count; ++i)
+        if (s.network[i] >= 0) ++s.start[size_t(s.network[i]) + 1];
+    for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
+    s.order.resize(s.start[nets]);
+    {
+        std::vector<uint32_t>& fill = s.start;  // reuse as running offsets, restored below
+        for (size_t i = 0; i < count; ++i)
+            if (s.network[i] >= 0) s.order[fill[size_t(s.network[i])]++] = uint32_t(i);
+        for (size_t k = nets; k > 0; --k) fill[k] = fill[k - 1];
+        fill[0] = 0;
+    }
+    // 3. Run each group in chunks: gather SoA inputs, evaluate, apply the output transform, scatter.
+    rt::ChunkKernel kernel = kernelFunction(activeKernel());
+    const format::Topology& t = a.asset.topology;
+    const bool exponential = t.outputTransform == format::OutputTransform::Exponential;
+    alignas(64) float x[rt::kInputs * rt::kChunk];
+    alignas(64) float y[rt::kOutputs * rt::kChunk];
+    for (size_t k = 0; k < nets; ++k) {
+        rt::NetworkView net{a.asset.weights.data() + k * a.paramsPerNetwork, uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data()};
+        const float scale = a.asset.voxels[k].scale;
+        for (uint32_t g = s.start[k]; g < s.start[k + 1]; g += rt::kChunk) {
+            uint32_t n = std::min<uint32_t>(rt::kChunk, s.start[k + 1] - g);
+            for (uint32_t j = 0; j < n; ++j) {
+                size_t i = s.order[g + j], at = i * v.stride;
+                for (int c = 0; c < 3; ++c) {
+                    x[(0 + c) * rt::kChunk + j] = s.local[i * 3 + size_t(c)];
+                    x[(3 + c) * rt::kChunk + j] = v.n[c][at];
+                    x[(6 + c) * rt::kChunk + j] = v.d[c][at];
+                }
+            }
+            for (int r = 0; r < rt::kInputs; ++r) std::fill(x + r * rt::kChunk + n, x + (r + 1) * rt::kChunk, 0.0f);
+            kernel(net, x, y);
+            for (uint32_t j = 0; j < n; ++j) {
+                size_t at = size_t(s.order[g + j]) * v.stride;
+                for (int c = 0; c < 3; ++c) {
+                    float yc = y[c * rt::kChunk + int(j)];
+                    float L = exponential ? std::expm1(std::min(yc, 80.0f)) : yc;
+                    v.out[c][at] = scale * (L > 0.0f ? L : 0.0f);  // NaN-safe: a NaN compares false -> 0
+                }
+            }
+        }
+    }
+    return NRAD_OK;
+}
+
+template <typename F>
+NradStatus guarded(F&& f) {
+    try {
+        return f();
+    } catch (const std::bad_alloc&) {
+        return NRAD_ERROR_OUT_OF_MEMORY;
+    } catch (...) {
+        return NRAD_ERROR_INTERNAL;
+    }
+}
+
+}  // namespace
+
+extern "C" {
+
+const char* nradStatusString(NradStatus status) {
+    switch (status) {
+        case NRAD_OK: return "ok";
+        case NRAD_ERROR_INVALID_ARGUMENT: return "invalid argument";
+        case NRAD_ERROR_OUT_OF_MEMORY: return "out of memory";
+        case NRAD_ERROR_IO: return "the file could not be read";
+        case NRAD_ERROR_TRUNCATED: return "the asset is truncated";
+        case NRAD_ERROR_NOT_AN_ASSET: return "not an .nrad asset";
+        case NRAD_ERROR_UNSUPPORTED_VERSION: return "unsupported asset format version";
+        case NRAD_ERROR_CORRUPT: return "the asset is damaged (checksum or structure)";
+        case NRAD_ERROR_INVALID_CONTENT: return "the asset's content is invalid";
+        case NRAD_ERROR_UNSUPPORTED_KERNEL: return "this CPU cannot run the requested kernel";
+        case NRAD_ERROR_INTERNAL: return "internal error";
+    }
+    return "unknown status";
+}
+
+NradStatus nradLoadFromMemory(const void* data, size_t size, uint32_t flags, NradAsset* asset, char* message,
+                              size_t messageSize) {
+    return guarded([&] { return load(data, size, flags, asset, message, messageSize); });
+}
+
+NradStatus nradLoadFromFile(const char* path, NradAsset* asset, char* message, size_t messageSize) {
+    return guarded([&] {
+        if (!path || !asset) return NRAD_ERROR_INVALID_ARGUMENT;
+        *asset = nullptr;
+        std::ifstream f(path, std::ios::binary);
+        if (!f) {
+            writeMessage(message, messageSize, std::string(path) + ": cannot open file");
+            return NRAD_ERROR_IO;
+        }
+        std::vector<char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+        if (f.bad()) {
+            writeMessage(message, messageSize, std::string(path) + ": read error");
+            return NRAD_ERROR_IO;
+        }
+        NradStatus st = load(bytes.data(), bytes.size(), NRAD_LOAD_COPY, asset, message, messageSize);
+        if (st != NRAD_OK && message && messageSize > 0) {
+            std::string m = std::string(path) + ": " + message;
+            writeMessage(message, messageSize, m);
+        }
+        return st;
+    });
+}
+
+void nradReleaseAsset(NradAsset asset) { delete asset; }
+
+NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
+    if (!a || !info) return NRAD_ERROR_INVALID_ARGUMENT;
+    return guarded([&] {
+        NradAssetInfo r;
+        std::memset(&r, 0, sizeof r);
+        r.formatVersionMajor = a->asset.header.versionMajor;
+        r.formatVersionMinor = a->asset.header.versionMinor;
+        for (int k = 0; k < 3; ++k) {
+            r.gridLower[k] = a->asset.grid.lower[k];
+            r.gridUpper[k] = a->asset.grid.upper[k];
+            r.gridDims[k] = a->asset.grid.dims[k];
+        }
+        const format::Topology& t = a->asset.topology;
+        r.occupiedVoxels = uint32_t(a->asset.voxels.size());
+        r.inputs = t.inputs;
+        r.outputs = t.outputs;
+        r.hiddenLayers = uint32_t(t.hiddenWidths.size());
+        for (size_t l = 0; l < t.hiddenWidths.size() && l < NRAD_MAX_HIDDEN_LAYERS; ++l) r.hiddenWidths[l] = t.hiddenWidths[l];
+        r.parametersPerNetwork = a->paramsPerNetwork;
+        r.weightEncoding = uint32_t(t.weightEncoding);
+        r.outputTransform = uint32_t(t.outputTransform);
+        r.fileBytes = a->fileBytes;
+        r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
+                        a->asset.voxels.size() * sizeof(format::VoxelEntry) + a->denseLookup.size() * sizeof(int32_t) +
+                        a->metadataCopy.size();
+        *info = r;
+        return NRAD_OK;
+    });
+}
+
+NradStatus nradGetOccupiedVoxel(NradAsset a, uint32_t i, uint32_t* voxelIndex) {
+    if (!a || !voxelIndex || i >= a->asset.voxels.size()) return NRAD_ERROR_INVALID_ARGUMENT;
+    *voxelIndex = a->asset.voxels[i].index;
+    return NRAD_OK;
+}
+
+NradStatus nradGetMetadata(NradAsset a, const char** json, size_t* length) {
+    if (!a || !json || !length) return NRAD_ERROR_INVALID_ARGUMENT;
+    *json = a->metadataLength ? a->metadata : "";
+    *length = a->metadataLength;
+    return NRAD_OK;
+}
+
+NradStatus nradEvaluate(NradAsset a, const float position[3], const float normal[3], const float direction[3], float rgb[3],
+                        uint32_t* pointFlags) {
+    if (!a || !position || !normal || !direction || !rgb) return NRAD_ERROR_INVALID_ARGUMENT;
+    return guarded([&] {
+        uint8_t flag = 0;
+        BatchView v{{position, position + 1, position + 2}, {normal, normal + 1, normal + 2},
+                    {direction, direction + 1, direction + 2}, {rgb, rgb + 1, rgb + 2}, 3, &flag};
+        NradStatus st = evaluateBatch(*a, 1, v);
+        if (pointFlags) *pointFlags = flag;
+        return st;
+    });
+}
+
+NradStatus nradEvaluateBatch(NradAsset a, size_t count, const float* positions, const float* normals,
+                             const float* directions, float* rgb, uint8_t* pointFlags) {
+    if (!a || (count > 0 && (!positions || !normals || !directions || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (count == 0) return NRAD_OK;
+    return guarded([&] {
+        BatchView v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
+                    {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
+        return evaluateBatch(*a, count, v);
+    });
+}
+
+NradStatus nradEvaluateBatchSoA(NradAsset a, size_t count, const NradBatchSoA* b) {
+    if (!a || !b) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (count == 0) return NRAD_OK;
+    if (!b->px || !b->py || !b->pz || !b->nx || !b->ny || !b->nz || !b->dx || !b->dy || !b->dz || !b->r || !b->g || !b->b)
+        return NRAD_ERROR_INVALID_ARGUMENT;
+    return guarded([&] {
+        BatchView v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags};
+        return evaluateBatch(*a, count, v);
+    });
+}
+
+NradStatus nradSelectKernel(NradKernel kernel) {
+    if (kernel == NRAD_KERNEL_AUTO) {
+        gKernel.store(bestKernel());
+        return NRAD_OK;
+    }
+    if (kernel != NRAD_KERNEL_SCALAR && kernel != NRAD_KERNEL_AVX2 && kernel != NRAD_KERNEL_AVX512)
+        return NRAD_ERROR_INVALID_ARGUMENT;
+    if (!cpuHas(kernel)) return NRAD_ERROR_UNSUPPORTED_KERNEL;
+    gKernel.store(kernel);
+    return NRAD_OK;
+}
+
+NradKernel nradActiveKernel(void) { return activeKernel(); }
+
+int nradKernelSupported(NradKernel kernel) { return kernel == NRAD_KERNEL_AUTO || cpuHas(kernel) ? 1 : 0; }
+
+}  // extern "C"

@@ -1,0 +1,368 @@
+// libnrad: loading safety (every prefix, flipped bytes, bad magic, versions, trailing bytes, huge counts),
+// evaluation against an independent plain forward pass, every SIMD kernel against the scalar one, point
+// flags, both batch layouts, concurrent evaluation, and agreement with the baker's own forward pass.
+#include <nrad/format.h>
+#include <nrad/nrad.h>
+#include <nrad/nrad.hpp>
+
+#include <cmath>
+#include <random>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "baker/bake/baker.h"
+#include "baker/bake/network.h"
+#include "baker/scene/gltf_loader.h"
+#include "support/test_paths.h"
+
+namespace nrad {
+namespace {
+
+format::Asset randomAsset(std::vector<uint32_t> hidden, format::WeightEncoding enc, format::OutputTransform transform,
+                          uint32_t seed, glm::uvec3 dims = glm::uvec3(3, 2, 2)) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    format::Asset a;
+    for (int k = 0; k < 3; ++k) {
+        a.grid.lower[k] = -1.0f - float(k);
+        a.grid.upper[k] = 2.0f + float(k);
+        a.grid.dims[k] = dims[k];
+    }
+    a.topology.hiddenWidths = hidden;
+    a.topology.weightEncoding = enc;
+    a.topology.outputTransform = transform;
+    for (uint32_t v = 0; v < a.grid.voxelCount(); v += 2) a.voxels.push_back({v, 0.5f + float(v)});  // every other voxel
+    size_t n = a.voxels.size() * a.topology.parameterCount();
+    for (size_t i = 0; i < n; ++i) {
+        float w = 0.6f * u(rng);
+        a.weights.push_back(enc == format::WeightEncoding::Float16 ? format::halfToFloat(format::floatToHalf(w)) : w);
+    }
+    a.metadata = "{\"test\":true}";
+    return a;
+}
+
+// Independent forward pass: straight from the format's definition, in double.
+glm::vec3 reference(const format::Asset& a, const glm::vec3& p, const glm::vec3& n, const glm::vec3& d, uint32_t& flag) {
+    float q[3] = {p.x, p.y, p.z};
+    int64_t voxel = format::voxelIndex(a.grid, q);
+    if (voxel < 0) {
+        flag = NRAD_POINT_OUTSIDE_GRID;
+        return glm::vec3(0.0f);
+    }
+    size_t net = a.voxels.size();
+    for (size_t i = 0; i < a.voxels.size(); ++i)
+        if (a.voxels[i].index == uint32_t(voxel)) net = i;
+    if (net == a.voxels.size()) {
+        flag = NRAD_POINT_EMPTY_VOXEL;
+        return glm::vec3(0.0f);
+    }
+    flag = NRAD_POINT_OK;
+    int c[3];
+    for (int k = 0; k < 3; ++k) c[k] = format::voxelCoordinate(q[k], a.grid.lower[k], a.grid.upper[k], a.grid.dims[k]);
+    float local[3];
+    format::positionInVoxel(a.grid, q, c, local);
+    std::vector<double> x = {local[0], local[1], local[2], n.x, n.y, n.z, d.x, d.y, d.z};
+    const float* w = a.weights.data() + net * a.topology.parameterCount();
+    std::vector<uint32_t> widths = a.topology.hiddenWidths;
+    widths.push_back(3);
+    for (size_t l = 0; l < widths.size(); ++l) {
+        std::vector<double> y(widths[l]);
+        const float* b = w + widths[l] * x.size();
+        for (size_t o = 0; o < y.size(); ++o) {
+            double s = b[o];
+            for (size_t i = 0; i < x.size(); ++i) s += double(w[o * x.size() + i]) * x[i];
+            y[o] = l + 1 == widths.size() ? s : std::max(0.0, s);
+        }
+        w = b + y.size();
+        x = y;
+    }
+    glm::vec3 L;
+    for (int k = 0; k < 3; ++k) {
+        double v = a.topology.outputTransform == format::OutputTransform::Exponential ? std::expm1(x[size_t(k)]) : x[size_t(k)];
+        L[k] = float(a.voxels[net].scale * std::max(0.0, v));
+    }
+    return L;
+}
+
+std::vector<NradKernel> kernels() {
+    std::vector<NradKernel> k = {NRAD_KERNEL_SCALAR};
+    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512})
+        if (nradKernelSupported(c)) k.push_back(c);
+    return k;
+}
+
+struct Points {
+    std::vector<float> p, n, d;
+};
+
+Points randomPoints(size_t count, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    Points pts;
+    for (size_t i = 0; i < count; ++i) {
+        // Mostly inside the grid of randomAsset, some outside.
+        glm::vec3 p(u(rng) * 2.0f + 0.5f, u(rng) * 2.5f + 0.5f, u(rng) * 3.5f + 0.5f);
+        glm::vec3 n = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0, 0, 1e-3f));
+        glm::vec3 d = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(1e-3f, 0, 0));
+        for (int k = 0; k < 3; ++k) {
+            pts.p.push_back(p[k]);
+            pts.n.push_back(n[k]);
+            pts.d.push_back(d[k]);
+        }
+    }
+    return pts;
+}
+
+TEST(Runtime, EveryKernelMatchesAPlainForwardPass) {
+    for (auto hidden : {std::vector<uint32_t>{9}, std::vector<uint32_t>{16, 8}, std::vector<uint32_t>{3}}) {
+        for (auto transform : {format::OutputTransform::ClampedLinear, format::OutputTransform::Exponential}) {
+            format::Asset a = randomAsset(hidden, format::WeightEncoding::Float32, transform, 5);
+            std::vector<uint8_t> bytes = format::encode(a);
+            nrad::Asset asset;
+            ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+            Points pts = randomPoints(1000, 9);
+            for (NradKernel k : kernels()) {
+                ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+                ASSERT_EQ(nradActiveKernel(), k);
+                std::vector<float> rgb(pts.p.size());
+                std::vector<uint8_t> flags(1000);
+                ASSERT_EQ(asset.evaluateBatch(1000, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data(), flags.data()), NRAD_OK);
+                int located = 0;
+                for (size_t i = 0; i < 1000; ++i) {
+                    uint32_t flag;
+                    glm::vec3 ref = reference(a, {pts.p[3 * i], pts.p[3 * i + 1], pts.p[3 * i + 2]},
+                                              {pts.n[3 * i], pts.n[3 * i + 1], pts.n[3 * i + 2]},
+                                              {pts.d[3 * i], pts.d[3 * i + 1], pts.d[3 * i + 2]}, flag);
+                    ASSERT_EQ(flags[i], flag) << i;
+                    located += flag == NRAD_POINT_OK;
+                    for (int c = 0; c < 3; ++c)
+                        ASSERT_NEAR(rgb[3 * i + size_t(c)], ref[c], 2e-5f * std::max(1.0f, std::abs(ref[c])))
+                            << "kernel " << k << " point " << i;
+                }
+                EXPECT_GT(located, 300);
+                EXPECT_LT(located, 700);
+            }
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 7);
+    std::vector<uint8_t> bytes = format::encode(a);
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_BORROW), NRAD_OK);
+    const size_t n = 257;
+    Points pts = randomPoints(n, 11);
+    std::vector<float> rgb(3 * n);
+    ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data()), NRAD_OK);
+    std::vector<float> soa[12];
+    for (int k = 0; k < 9; ++k)
+        for (size_t i = 0; i < n; ++i) soa[k].push_back((k < 3 ? pts.p : k < 6 ? pts.n : pts.d)[3 * i + size_t(k % 3)]);
+    for (int k = 9; k < 12; ++k) soa[k].assign(n, -1.0f);
+    std::vector<uint8_t> flags(n);
+    NradBatchSoA b{soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), soa[5].data(), soa[6].data(),
+                   soa[7].data(), soa[8].data(), soa[9].data(), soa[10].data(), soa[11].data(), flags.data()};
+    ASSERT_EQ(asset.evaluateBatch(n, b), NRAD_OK);
+    for (size_t i = 0; i < n; ++i) {
+        float one[3];
+        uint32_t flag;
+        ASSERT_EQ(asset.evaluate(&pts.p[3 * i], &pts.n[3 * i], &pts.d[3 * i], one, &flag), NRAD_OK);
+        EXPECT_EQ(flag, flags[i]);
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_EQ(rgb[3 * i + size_t(c)], soa[9 + c][i]);
+            EXPECT_EQ(rgb[3 * i + size_t(c)], one[c]);
+        }
+    }
+    const char* json;
+    size_t length;
+    ASSERT_EQ(nradGetMetadata(asset.get(), &json, &length), NRAD_OK);
+    EXPECT_EQ(std::string(json, length), "{\"test\":true}");
+}
+
+TEST(Runtime, FlagsForOutsideEmptyAndInvalidPoints) {
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float32, format::OutputTransform::ClampedLinear, 3);
+    std::vector<uint8_t> bytes = format::encode(a);
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    const float n[3] = {0, 0, 1}, d[3] = {0, 0, 1};
+    float rgb[3] = {7, 7, 7};
+    uint32_t flag = 99;
+    const float outside[3] = {100.0f, 0.0f, 0.0f};
+    EXPECT_EQ(asset.evaluate(outside, n, d, rgb, &flag), NRAD_OK);
+    EXPECT_EQ(flag, uint32_t(NRAD_POINT_OUTSIDE_GRID));
+    EXPECT_EQ(rgb[0], 0.0f);
+    // Voxel 1 (x = 1, y = 0, z = 0) is empty: only even voxels have networks.
+    const float empty[3] = {-1.0f + 1.5f, -2.0f + 0.1f, -3.0f + 0.1f};
+    EXPECT_EQ(asset.evaluate(empty, n, d, rgb, &flag), NRAD_OK);
+    EXPECT_EQ(flag, uint32_t(NRAD_POINT_EMPTY_VOXEL));
+    const float nan[3] = {std::nanf(""), 0.0f, 0.0f};
+    EXPECT_EQ(asset.evaluate(nan, n, d, rgb, &flag), NRAD_OK);
+    EXPECT_EQ(flag, uint32_t(NRAD_POINT_INVALID_INPUT));
+    EXPECT_EQ(rgb[1], 0.0f);
+    EXPECT_EQ(nradEvaluate(nullptr, n, n, d, rgb, &flag), NRAD_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(nradEvaluate(asset.get(), nullptr, n, d, rgb, &flag), NRAD_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(nradEvaluateBatch(asset.get(), 0, nullptr, nullptr, nullptr, nullptr, nullptr), NRAD_OK);
+    EXPECT_STREQ(nradStatusString(NRAD_ERROR_CORRUPT), "the asset is damaged (checksum or structure)");
+}
+
+TEST(Runtime, ConcurrentEvaluationOnASharedHandle) {
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 13);
+    std::vector<uint8_t> bytes = format::encode(a);
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    const size_t n = 5000;
+    Points pts = randomPoints(n, 17);
+    std::vector<float> expected(3 * n);
+    ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), expected.data()), NRAD_OK);
+    std::vector<std::vector<float>> results(4, std::vector<float>(3 * n));
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t)
+        threads.emplace_back([&, t] {
+            for (int rep = 0; rep < 20; ++rep)
+                asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), results[size_t(t)].data());
+        });
+    for (std::thread& t : threads) t.join();
+    for (const auto& r : results) EXPECT_EQ(r, expected);
+}
+
+NradStatus loadStatus(const std::vector<uint8_t>& b) {
+    NradAsset a = nullptr;
+    char message[128];
+    NradStatus s = nradLoadFromMemory(b.data(), b.size(), NRAD_LOAD_COPY, &a, message, sizeof message);
+    if (s == NRAD_OK) EXPECT_NE(a, nullptr); else EXPECT_EQ(a, nullptr);
+    nradReleaseAsset(a);
+    return s;
+}
+
+// Rewrites the CRCs after a deliberate change, so the loader sees a well-formed but hostile file.
+void fixCrcs(std::vector<uint8_t>& b) {
+    auto rd32 = [&](size_t at) { return uint32_t(b[at]) | uint32_t(b[at + 1]) << 8 | uint32_t(b[at + 2]) << 16 | uint32_t(b[at + 3]) << 24; };
+    auto wr32 = [&](size_t at, uint32_t v) { for (int i = 0; i < 4; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i)); };
+    // The planted values may be huge: only records and sections inside the buffer get their CRC fixed.
+    uint64_t sections = rd32(20);
+    for (uint64_t i = 0; i < sections && 64 + 32 * (i + 1) <= b.size(); ++i) {
+        size_t r = 64 + 32 * size_t(i);
+        uint64_t off = rd32(r + 8), size = rd32(r + 16) | uint64_t(rd32(r + 20)) << 32;
+        if (off <= b.size() && size <= b.size() - off) wr32(r + 24, format::crc32(b.data() + off, size_t(size)));
+    }
+    if (64 + 32 * sections <= b.size()) wr32(40, format::crc32(b.data() + 64, size_t(32 * sections)));
+    wr32(60, format::crc32(b.data(), 60));
+}
+
+TEST(RuntimeLoader, HostileAndDamagedBytes) {
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 1);
+    std::vector<uint8_t> good = format::encode(a);
+    EXPECT_EQ(loadStatus(good), NRAD_OK);
+    for (size_t n = 0; n < good.size(); ++n) {
+        std::vector<uint8_t> prefix(good.begin(), good.begin() + long(n));
+        NradStatus s = loadStatus(prefix);
+        ASSERT_TRUE(s == NRAD_ERROR_TRUNCATED || (n < 64 && s == NRAD_ERROR_NOT_AN_ASSET)) << n << " " << s;
+    }
+    for (size_t i = 0; i < good.size(); ++i) {
+        std::vector<uint8_t> b = good;
+        b[i] ^= 0x5A;
+        ASSERT_NE(loadStatus(b), NRAD_OK) << "byte " << i;
+    }
+    std::vector<uint8_t> b = good;
+    b[1] = 'X';
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_NOT_AN_ASSET);
+    b = good;
+    b[8] = 2;
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_UNSUPPORTED_VERSION);
+    b = good;
+    b.push_back(0);
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_CORRUPT);
+    // Huge counts with valid CRCs: occupied voxels, section sizes, hidden widths, grid dimensions.
+    const size_t voxl = 64 + 32 * 2;  // VOXL's record
+    auto sectionOffset = [&](size_t record) { return size_t(good[record + 8]) | size_t(good[record + 9]) << 8; };
+    b = good;
+    b[sectionOffset(voxl) + 3] = 0x7F;  // occupiedCount ~ 2^31
+    fixCrcs(b);
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_INVALID_CONTENT);
+    b = good;
+    b[64 + 32 * 3 + 16 + 7] = 0x40;  // WGHT size ~ 2^62
+    fixCrcs(b);
+    EXPECT_NE(loadStatus(b), NRAD_OK);
+    b = good;
+    b[sectionOffset(64 + 32) + 24 + 3] = 0x10;  // hidden width 2^28
+    fixCrcs(b);
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_INVALID_CONTENT);
+    b = good;
+    b[sectionOffset(64) + 24 + 3] = 0xFF;  // grid dims ~ 4e9
+    fixCrcs(b);
+    EXPECT_EQ(loadStatus(b), NRAD_ERROR_INVALID_CONTENT);
+    b = good;
+    b[20] = 0xFF;  // 255 sections
+    fixCrcs(b);
+    EXPECT_NE(loadStatus(b), NRAD_OK);
+    // Null arguments and missing files.
+    NradAsset h = nullptr;
+    EXPECT_EQ(nradLoadFromMemory(nullptr, 10, 0, &h, nullptr, 0), NRAD_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(nradLoadFromMemory(good.data(), good.size(), 0, nullptr, nullptr, 0), NRAD_ERROR_INVALID_ARGUMENT);
+    char message[256];
+    EXPECT_EQ(nradLoadFromFile("/nonexistent.nrad", &h, message, sizeof message), NRAD_ERROR_IO);
+    EXPECT_STREQ(message, "/nonexistent.nrad: cannot open file");
+}
+
+TEST(Runtime, AgreesWithTheBakersForwardPassOnABakedCornellBox) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
+    for (format::WeightEncoding enc : {format::WeightEncoding::Float32, format::WeightEncoding::Float16}) {
+        BakeSettings s;
+        s.samples.points = 2000;
+        s.samples.paths = 8;
+        s.train.epochs = 100;
+        s.encoding = enc;
+        BakeResult r = bakeScene(scene, s);
+        std::vector<uint8_t> bytes = format::encode(r.asset);
+        nrad::Asset asset;
+        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+        VoxelGrid grid(scene.bounds, s.grid);
+        SurfacePieces pieces(scene.mesh, grid);
+        SplitMix64 rng(5);
+        double worst = 0.0;
+        for (NradKernel k : kernels()) {
+            nradSelectKernel(k);
+            for (size_t v = 0; v < r.voxels.size(); ++v) {
+                const std::vector<uint32_t>& own = pieces.piecesOf(r.voxels[v].voxel);
+                ASSERT_FALSE(own.empty());
+                for (int i = 0; i < 20; ++i) {
+                    float b1, b2;
+                    glm::vec3 p = pieces.samplePiece(pieces.pieces()[own[size_t(i) % own.size()]], {rng.uniform(), rng.uniform()}, b1, b2);
+                    glm::vec3 n = scene.mesh.geometricNormal(pieces.pieces()[own[size_t(i) % own.size()]].triangle);
+                    glm::vec3 d = glm::normalize(n + glm::vec3(0.3f, 0.2f, -0.1f));
+                    // The network of the voxel the format's rule gives for p (a border point's voxel is above).
+                    int64_t voxel = grid.voxelOf(p);
+                    auto it = std::find_if(r.voxels.begin(), r.voxels.end(), [&](const VoxelTrainResult& x) { return int64_t(x.voxel) == voxel; });
+                    ASSERT_NE(it, r.voxels.end());
+                    const VoxelTrainResult& vr = *it;
+                    Mlp mlp(s.train.shape);
+                    mlp.parameters() = vr.params;
+                    MlpWorkspace ws;
+                    float in[9], y[3];
+                    encodeInput(grid, vr.voxel, p, n, d, in);
+                    mlp.forward(in, y, ws);
+                    glm::vec3 expected = decodeOutput(r.asset.topology.outputTransform, vr.scale, y);
+                    float rgb[3];
+                    uint32_t flag;
+                    ASSERT_EQ(asset.evaluate(&p.x, &n.x, &d.x, rgb, &flag), NRAD_OK);
+                    ASSERT_EQ(flag, uint32_t(NRAD_POINT_OK));
+                    for (int c = 0; c < 3; ++c) {
+                        // Relative to the larger of the value and the voxel's mean radiance (its scale).
+                        double rel = std::abs(rgb[c] - expected[c]) / std::max(double(std::abs(expected[c])), double(vr.scale));
+                        worst = std::max(worst, rel);
+                    }
+                }
+            }
+        }
+        // Stated tolerance, relative to max(value, voxel mean radiance): fp32 weights 1e-4 (measured 4e-7),
+        // fp16 weights 5e-3 (measured 1.2e-3: 11-bit mantissas).
+        std::printf("encoding %d: worst relative difference %.3g\n", int(enc), worst);
+        EXPECT_LT(worst, enc == format::WeightEncoding::Float32 ? 1e-4 : 5e-3) << "encoding " << int(enc);
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+}  // namespace
+}  // namespace nrad
