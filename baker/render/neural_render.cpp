@@ -1,0 +1,99 @@
+// Tile-by-tile primary visibility and batched runtime evaluation.
+#include "baker/render/neural_render.h"
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+
+#include <tbb/parallel_for.h>
+
+#include "baker/render/camera.h"
+#include "baker/render/sampler.h"
+#include "baker/render/surface.h"
+
+namespace nrad {
+
+NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
+                              const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
+                              const std::function<void(double)>& progress) {
+    using clock = std::chrono::steady_clock;
+    auto start = clock::now();
+    image = Image(settings.width, settings.height);
+    CameraRays rays(camera, settings.width, settings.height);
+    const int ts = std::max(1, settings.tileSize);
+    const int tilesX = (settings.width + ts - 1) / ts, tilesY = (settings.height + ts - 1) / ts;
+    const int tileCount = tilesX * tilesY;
+    std::atomic<int> tilesDone{0};
+    std::atomic<int> failure{NRAD_OK};
+    std::mutex statsMutex;
+    NeuralRenderStats total;
+
+    tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
+        std::vector<float> pos, nrm, dir, rgb;
+        std::vector<uint8_t> flags;
+        std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
+        NeuralRenderStats local;
+        for (int tile = range.begin(); tile != range.end(); ++tile) {
+            int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
+            int x1 = std::min(x0 + ts, settings.width), y1 = std::min(y0 + ts, settings.height);
+            auto t0 = clock::now();
+            pos.clear();
+            nrm.clear();
+            dir.clear();
+            pixelOf.clear();
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x) {
+                    uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
+                    for (int s = 0; s < settings.spp; ++s) {
+                        Sampler sampler(stream, uint32_t(s));
+                        glm::vec2 jitter = sampler.get2D();
+                        glm::vec3 o, d;
+                        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                        Hit hit = accel.intersect(o, d);
+                        if (!hit.valid()) continue;
+                        SurfaceInteraction si = makeInteraction(scene, hit, d);
+                        for (int k = 0; k < 3; ++k) {
+                            pos.push_back(si.p[k]);
+                            nrm.push_back(si.ns[k]);
+                            dir.push_back(si.wo[k]);
+                        }
+                        pixelOf.push_back(uint32_t((y - y0) * ts + (x - x0)));
+                    }
+                }
+            auto t1 = clock::now();
+            size_t n = pixelOf.size();
+            rgb.assign(3 * n, 0.0f);
+            flags.assign(n, 0);
+            NradStatus st = nradEvaluateBatch(asset, n, pos.data(), nrm.data(), dir.data(), rgb.data(), flags.data());
+            auto t2 = clock::now();
+            if (st != NRAD_OK) failure = st;
+            std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
+            for (size_t i = 0; i < n; ++i) {
+                sum[pixelOf[i]] += glm::dvec3(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
+                local.outsideGrid += flags[i] == NRAD_POINT_OUTSIDE_GRID;
+                local.emptyVoxel += flags[i] == NRAD_POINT_EMPTY_VOXEL;
+                local.invalidInput += flags[i] == NRAD_POINT_INVALID_INPUT;
+            }
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x)
+                    image.at(x, y) = glm::vec3(sum[size_t((y - y0) * ts + (x - x0))] / double(std::max(1, settings.spp)));
+            local.evaluations += n;
+            local.visibilitySeconds += std::chrono::duration<double>(t1 - t0).count();
+            local.evaluationSeconds += std::chrono::duration<double>(t2 - t1).count();
+            int done = ++tilesDone;
+            if (progress) progress(double(done) / double(tileCount));
+        }
+        std::lock_guard<std::mutex> lock(statsMutex);
+        total.visibilitySeconds += local.visibilitySeconds;
+        total.evaluationSeconds += local.evaluationSeconds;
+        total.evaluations += local.evaluations;
+        total.outsideGrid += local.outsideGrid;
+        total.emptyVoxel += local.emptyVoxel;
+        total.invalidInput += local.invalidInput;
+    }, tbb::simple_partitioner());
+    total.seconds = std::chrono::duration<double>(clock::now() - start).count();
+    if (stats) *stats = total;
+    return NradStatus(failure.load());
+}
+
+}  // namespace nrad

@@ -1,0 +1,28 @@
+// Rendering through a neural radiance asset, as an engine would: the primary ray finds the first surface,
+// and the runtime's public C API evaluates the radiance leaving it towards the camera (wo = -ray
+// direction, the shading normal on the viewer's side). Box-filtered over `spp` jittered samples per pixel.
+#pragma once
+
+#include <nrad/nrad.h>
+
+#include "baker/render/accel.h"
+#include "baker/render/image_io.h"
+#include "baker/render/path_tracer.h"
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct NeuralRenderStats {
+    double seconds = 0.0;  // wall time of the whole render
+    double visibilitySeconds = 0.0;  // summed over threads: primary rays and surface interactions
+    double evaluationSeconds = 0.0;  // summed over threads: runtime evaluation
+    uint64_t evaluations = 0;
+    uint64_t outsideGrid = 0, emptyVoxel = 0, invalidInput = 0;  // per-point flags
+};
+
+// Fails with the runtime's status if evaluation fails.
+NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
+                              const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
+                              const std::function<void(double)>& progress = {});
+
+}  // namespace nrad
