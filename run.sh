@@ -9,7 +9,8 @@ cd "$(dirname "$0")"
 
 PACKAGES=(cmake ninja-build g++ pkg-config python3
   libembree-dev libtinygltf-dev libdraco-dev libopenexr-dev libglm-dev nlohmann-json3-dev
-  libtbb-dev libcli11-dev libstb-dev libgtest-dev libgmock-dev libbenchmark-dev)
+  libtbb-dev libcli11-dev libstb-dev libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev)
 
 install_packages() {
   local missing=()
