@@ -27,7 +27,21 @@ void evalChunkAvx2(const NetworkView& net, const float* x, float* y) {
             w = bias + out;
             in = out;
         }
-        for (int c = 0; c < kOutputs; ++c) _mm256_storeu_ps(y + c * kChunk + p, a[c]);
+        const __m256 scale = _mm256_set1_ps(net.scale);
+        for (int c = 0; c < kOutputs; ++c) {
+            __m256 v = a[c];
+            if (net.exponential) {
+                __m256 xe = _mm256_min_ps(_mm256_max_ps(v, _mm256_set1_ps(kExpLo)), _mm256_set1_ps(kExpHi));
+                __m256 n = _mm256_round_ps(_mm256_mul_ps(xe, _mm256_set1_ps(kLog2e)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+                __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(kLn2Lo), _mm256_fnmadd_ps(n, _mm256_set1_ps(kLn2Hi), xe));
+                __m256 q = _mm256_set1_ps(kExpP[6]);
+                for (int k = 5; k >= 0; --k) q = _mm256_fmadd_ps(q, r, _mm256_set1_ps(kExpP[k]));
+                __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+                v = _mm256_sub_ps(_mm256_mul_ps(q, _mm256_castsi256_ps(e)), _mm256_set1_ps(1.0f));
+            }
+            // max(v * scale, 0) with the zero first: a NaN in v yields 0.
+            _mm256_storeu_ps(y + c * kChunk + p, _mm256_max_ps(_mm256_mul_ps(v, scale), zero));
+        }
     }
 }
 

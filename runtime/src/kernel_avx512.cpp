@@ -1,4 +1,8 @@
 // AVX-512F kernel: 16 points per vector. Compiled with -mavx512f; called only after the CPU was checked.
+// GCC 12's AVX-512 intrinsics pass _mm512_undefined_ps() as the masked-off source, which its
+// -Wmaybe-uninitialized reports as a use of an uninitialised value (a false positive, GCC bug 105593).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
 #include "kernels.h"
@@ -20,14 +24,27 @@ void evalChunkAvx512(const NetworkView& net, const float* x, float* y) {
                 __m512 s = _mm512_set1_ps(bias[o]);
                 const float* row = w + o * in;
                 for (int i = 0; i < in; ++i) s = _mm512_fmadd_ps(_mm512_set1_ps(row[i]), a[i], s);
-                // The zero-masking form: GCC 12 warns about the undefined pass-through of _mm512_max_ps.
-                b[o] = last ? s : _mm512_maskz_max_ps(__mmask16(0xFFFF), s, zero);
+                b[o] = last ? s : _mm512_max_ps(s, zero);
             }
             for (int o = 0; o < out; ++o) a[o] = b[o];
             w = bias + out;
             in = out;
         }
-        for (int c = 0; c < kOutputs; ++c) _mm512_storeu_ps(y + c * kChunk + p, a[c]);
+        const __m512 scale = _mm512_set1_ps(net.scale);
+        for (int c = 0; c < kOutputs; ++c) {
+            __m512 v = a[c];
+            if (net.exponential) {
+                __m512 xe = _mm512_min_ps(_mm512_max_ps(v, _mm512_set1_ps(kExpLo)), _mm512_set1_ps(kExpHi));
+                __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(xe, _mm512_set1_ps(kLog2e)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+                __m512 r = _mm512_fnmadd_ps(n, _mm512_set1_ps(kLn2Lo), _mm512_fnmadd_ps(n, _mm512_set1_ps(kLn2Hi), xe));
+                __m512 q = _mm512_set1_ps(kExpP[6]);
+                for (int k = 5; k >= 0; --k) q = _mm512_fmadd_ps(q, r, _mm512_set1_ps(kExpP[k]));
+                __m512i e = _mm512_slli_epi32(_mm512_add_epi32(_mm512_cvtps_epi32(n), _mm512_set1_epi32(127)), 23);
+                v = _mm512_sub_ps(_mm512_mul_ps(q, _mm512_castsi512_ps(e)), _mm512_set1_ps(1.0f));
+            }
+            // max(v * scale, 0) with the zero first: a NaN in v yields 0.
+            _mm512_storeu_ps(y + c * kChunk + p, _mm512_max_ps(_mm512_mul_ps(v, scale), zero));
+        }
     }
 }
 

@@ -22,7 +22,23 @@ void evalChunkScalar(const NetworkView& net, const float* x, float* y) {
             w = bias + out;
             in = out;
         }
-        for (int c = 0; c < kOutputs; ++c) y[c * kChunk + p] = a[c];
+        for (int c = 0; c < kOutputs; ++c) {
+            float v = a[c];
+            if (net.exponential) {
+                float xe = v < kExpLo ? kExpLo : (v > kExpHi ? kExpHi : v);
+                float n = float(int(xe * kLog2e + (xe >= 0.0f ? 0.5f : -0.5f)));
+                float r = (xe - n * kLn2Hi) - n * kLn2Lo;
+                float q = kExpP[6];
+                for (int k = 5; k >= 0; --k) q = q * r + kExpP[k];
+                // q x 2^n by building the exponent bits.
+                int bits = (int(n) + 127) << 23;
+                float pow2;
+                __builtin_memcpy(&pow2, &bits, 4);
+                v = q * pow2 - 1.0f;
+            }
+            v *= net.scale;
+            y[c * kChunk + p] = v > 0.0f ? v : 0.0f;  // NaN compares false: 0
+        }
     }
 }
 

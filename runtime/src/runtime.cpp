@@ -140,11 +140,15 @@ int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& f
     const format::Grid& g = a.asset.grid;
     int c[3];
     for (int k = 0; k < 3; ++k) {
-        c[k] = format::voxelCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]);
-        if (c[k] < 0) {
+        // The format's rule, with the continuous coordinate kept for the position input.
+        if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) {
             flag = NRAD_POINT_OUTSIDE_GRID;
             return -1;
         }
+        float t = format::gridCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]);
+        int i = int(t);
+        c[k] = i >= int(g.dims[k]) ? int(g.dims[k]) - 1 : (i < 0 ? 0 : i);
+        local[k] = 2.0f * (t - float(c[k])) - 1.0f;
     }
     uint32_t voxel = uint32_t(c[0]) + g.dims[0] * (uint32_t(c[1]) + g.dims[1] * uint32_t(c[2]));
     int32_t net = -1;
@@ -159,7 +163,6 @@ int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& f
         flag = NRAD_POINT_EMPTY_VOXEL;
         return -1;
     }
-    format::positionInVoxel(g, p, c, local);
     for (int k = 0; k < 3; ++k) local[k] = std::min(1.0f, std::max(-1.0f, local[k]));
     flag = NRAD_POINT_OK;
     return net;
@@ -224,8 +227,8 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const BatchView& v) 
     alignas(64) float x[rt::kInputs * rt::kChunk];
     alignas(64) float y[rt::kOutputs * rt::kChunk];
     for (size_t k = 0; k < nets; ++k) {
-        rt::NetworkView net{a.asset.weights.data() + k * a.paramsPerNetwork, uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data()};
-        const float scale = a.asset.voxels[k].scale;
+        rt::NetworkView net{a.asset.weights.data() + k * a.paramsPerNetwork, uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data(),
+                            a.asset.voxels[k].scale, exponential};
         for (uint32_t g = s.start[k]; g < s.start[k + 1]; g += rt::kChunk) {
             uint32_t n = std::min<uint32_t>(rt::kChunk, s.start[k + 1] - g);
             for (uint32_t j = 0; j < n; ++j) {
@@ -240,11 +243,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const BatchView& v) 
             kernel(net, x, y);
             for (uint32_t j = 0; j < n; ++j) {
                 size_t at = size_t(s.order[g + j]) * v.stride;
-                for (int c = 0; c < 3; ++c) {
-                    float yc = y[c * rt::kChunk + int(j)];
-                    float L = exponential ? std::expm1(std::min(yc, 80.0f)) : yc;
-                    v.out[c][at] = scale * (L > 0.0f ? L : 0.0f);  // NaN-safe: a NaN compares false -> 0
-                }
+                for (int c = 0; c < 3; ++c) v.out[c][at] = y[c * rt::kChunk + int(j)];  // radiance, from the kernel
             }
         }
     }

@@ -175,12 +175,18 @@ inline float halfToFloat(uint16_t h) {
 
 // ----- voxel lookup: the rule both the baker and the runtime use ------------------------------------------
 
+// Continuous voxel coordinate of p along one axis, (p - lower) x dim / (upper - lower): the quantity both
+// the voxel rule and the position input are computed from (so they always agree).
+inline float gridCoordinate(float p, float lower, float upper, uint32_t dim) {
+    return (p - lower) * (float(dim) / (upper - lower));  // the division depends on the grid only: hoistable
+}
+
 // Voxel coordinate of p along one axis: floor((p - lower) / (upper - lower) * dim), with the upper face
 // belonging to the last voxel. A point on an interior border belongs to the voxel above it. Returns -1
 // outside [lower, upper] (or for NaN).
 inline int voxelCoordinate(float p, float lower, float upper, uint32_t dim) {
     if (!(p >= lower && p <= upper)) return -1;
-    float t = (p - lower) / (upper - lower) * float(dim);
+    float t = gridCoordinate(p, lower, upper, dim);
     int i = int(t);
     return i >= int(dim) ? int(dim) - 1 : (i < 0 ? 0 : i);
 }
@@ -193,13 +199,10 @@ inline int64_t voxelIndex(const Grid& g, const float p[3]) {
     return int64_t(c[0]) + int64_t(g.dims[0]) * (int64_t(c[1]) + int64_t(g.dims[1]) * int64_t(c[2]));
 }
 
-// Position of p inside voxel (x, y, z), mapped to [-1, 1]^3 (the network's first three inputs).
+// Position of p inside voxel (x, y, z), mapped to [-1, 1]^3 (the network's first three inputs):
+// 2 (t - coord) - 1 with t the continuous grid coordinate.
 inline void positionInVoxel(const Grid& g, const float p[3], const int coord[3], float out[3]) {
-    for (int k = 0; k < 3; ++k) {
-        float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
-        float lo = g.lower[k] + size * float(coord[k]);
-        out[k] = 2.0f * (p[k] - lo) / size - 1.0f;
-    }
+    for (int k = 0; k < 3; ++k) out[k] = 2.0f * (gridCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]) - float(coord[k])) - 1.0f;
 }
 
 // ----- decoding -------------------------------------------------------------------------------------------

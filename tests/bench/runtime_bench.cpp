@@ -1,0 +1,259 @@
+// Runtime throughput against the machine's own FMA peak, measured in one run.
+//
+// - FMA peak: 16 independent chains of vector FMAs at the widest width this CPU has (AVX-512, AVX2 or
+//   scalar), per thread and on all threads. A 9-9-3 network costs 108 multiply-adds, so the peak in
+//   evaluations/s is FMA lanes/s / 108.
+// - Network evaluations/s through the public API (nradEvaluateBatch, 64k points per call) on a 3x3x3
+//   asset of 9-9-3 fp16 networks, for coherent batches (points sorted by voxel) and incoherent ones
+//   (random voxels), per kernel, on 1 thread and on all threads; printed as a fraction of the peak.
+// - What engines do today, next to it: a trilinear lookup in a grid of L2 spherical-harmonics radiance
+//   probes (9 RGB coefficients) holding the same number of bytes as the networks, evaluated in the view
+//   direction; lookups/s on one thread.
+//
+// Usage: runtime_bench [--points N] [--repeat R]
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <immintrin.h>
+#include <nrad/format.h>
+#include <nrad/nrad.h>
+
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+double seconds(clock_type::time_point a, clock_type::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+// ----- FMA peak ----------------------------------------------------------------------------------------
+
+__attribute__((target("avx512f"))) double fmaLoop512(long iters) {
+    __m512 acc[16];
+    for (int i = 0; i < 16; ++i) acc[i] = _mm512_set1_ps(float(i));
+    const __m512 a = _mm512_set1_ps(0.999999f), b = _mm512_set1_ps(1e-7f);
+    for (long it = 0; it < iters; ++it)
+        for (int i = 0; i < 16; ++i) acc[i] = _mm512_fmadd_ps(acc[i], a, b);
+    float sum = 0.0f, out[16];
+    for (int i = 0; i < 16; ++i) {
+        _mm512_storeu_ps(out, acc[i]);
+        sum += out[0];
+    }
+    return double(sum);
+}
+__attribute__((target("avx2,fma"))) double fmaLoop256(long iters) {
+    __m256 acc[16];
+    for (int i = 0; i < 16; ++i) acc[i] = _mm256_set1_ps(float(i));
+    const __m256 a = _mm256_set1_ps(0.999999f), b = _mm256_set1_ps(1e-7f);
+    for (long it = 0; it < iters; ++it)
+        for (int i = 0; i < 16; ++i) acc[i] = _mm256_fmadd_ps(acc[i], a, b);
+    float sum = 0.0f, out[8];
+    for (int i = 0; i < 16; ++i) {
+        _mm256_storeu_ps(out, acc[i]);
+        sum += out[0];
+    }
+    return double(sum);
+}
+
+volatile double gSink = 0.0;
+
+// FMA lanes per second (one lane-FMA = one multiply-add) on `threads` threads.
+double fmaPeak(int threads, int& width) {
+    width = nradKernelSupported(NRAD_KERNEL_AVX512) ? 16 : nradKernelSupported(NRAD_KERNEL_AVX2) ? 8 : 1;
+    const long iters = 20'000'000;
+    double best = 0.0;
+    for (int rep = 0; rep < 3; ++rep) {
+        auto t0 = clock_type::now();
+        std::vector<std::thread> pool;
+        for (int t = 0; t < threads; ++t)
+            pool.emplace_back([&] {
+                double s = width == 16 ? fmaLoop512(iters) : width == 8 ? fmaLoop256(iters) : 0.0;
+                gSink = gSink + s;
+            });
+        for (auto& t : pool) t.join();
+        double dt = seconds(t0, clock_type::now());
+        best = std::max(best, double(iters) * 16.0 * width * threads / dt);
+    }
+    return best;
+}
+
+// ----- network evaluation --------------------------------------------------------------------------------
+
+struct Points {
+    std::vector<float> p, n, d;
+};
+
+Points makePoints(size_t count, bool coherent, const nrad::format::Grid& g, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    Points pts;
+    pts.p.resize(3 * count);
+    pts.n.resize(3 * count);
+    pts.d.resize(3 * count);
+    const uint64_t voxels = g.voxelCount();
+    for (size_t i = 0; i < count; ++i) {
+        // Coherent: consecutive runs of points in the same voxel (sorted by voxel); incoherent: any voxel.
+        uint64_t v = coherent ? (i * voxels) / count : rng() % voxels;
+        uint32_t c[3] = {uint32_t(v % g.dims[0]), uint32_t((v / g.dims[0]) % g.dims[1]), uint32_t(v / (g.dims[0] * g.dims[1]))};
+        for (int k = 0; k < 3; ++k) {
+            float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+            pts.p[3 * i + size_t(k)] = g.lower[k] + size * (float(c[k]) + 0.05f + 0.9f * u(rng));
+        }
+        float z = 2.0f * u(rng) - 1.0f, a = 6.2831853f * u(rng), r = std::sqrt(1.0f - z * z);
+        pts.n[3 * i] = r * std::cos(a);
+        pts.n[3 * i + 1] = r * std::sin(a);
+        pts.n[3 * i + 2] = z;
+        z = 2.0f * u(rng) - 1.0f, a = 6.2831853f * u(rng), r = std::sqrt(1.0f - z * z);
+        pts.d[3 * i] = r * std::cos(a);
+        pts.d[3 * i + 1] = r * std::sin(a);
+        pts.d[3 * i + 2] = z;
+    }
+    return pts;
+}
+
+double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int repeat) {
+    const size_t count = pts.p.size() / 3, batch = 65536;
+    std::vector<std::vector<float>> out(size_t(threads), std::vector<float>(3 * batch));
+    double best = 0.0;
+    for (int rep = 0; rep < repeat; ++rep) {
+        std::atomic<size_t> next{0};
+        auto t0 = clock_type::now();
+        std::vector<std::thread> pool;
+        for (int t = 0; t < threads; ++t)
+            pool.emplace_back([&, t] {
+                for (size_t b; (b = next.fetch_add(batch)) < count;) {
+                    size_t n = std::min(batch, count - b);
+                    nradEvaluateBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], &pts.d[3 * b], out[size_t(t)].data(), nullptr);
+                }
+            });
+        for (auto& t : pool) t.join();
+        best = std::max(best, double(count) / seconds(t0, clock_type::now()));
+    }
+    return best;
+}
+
+// ----- L2 SH probe grid ---------------------------------------------------------------------------------
+
+struct ProbeGrid {
+    int dims[3];
+    float lower[3], upper[3];
+    std::vector<float> coeffs;  // per probe: 9 SH coefficients x RGB = 27 floats
+};
+
+inline void shBasis(const float d[3], float y[9]) {
+    y[0] = 0.282095f;
+    y[1] = 0.488603f * d[1];
+    y[2] = 0.488603f * d[2];
+    y[3] = 0.488603f * d[0];
+    y[4] = 1.092548f * d[0] * d[1];
+    y[5] = 1.092548f * d[1] * d[2];
+    y[6] = 0.315392f * (3.0f * d[2] * d[2] - 1.0f);
+    y[7] = 1.092548f * d[0] * d[2];
+    y[8] = 0.546274f * (d[0] * d[0] - d[1] * d[1]);
+}
+
+void probeLookup(const ProbeGrid& g, const float p[3], const float d[3], float rgb[3]) {
+    int c[3];
+    float f[3];
+    for (int k = 0; k < 3; ++k) {
+        float t = (p[k] - g.lower[k]) / (g.upper[k] - g.lower[k]) * float(g.dims[k] - 1);
+        t = std::min(std::max(t, 0.0f), float(g.dims[k] - 1) - 1e-4f);
+        c[k] = int(t);
+        f[k] = t - float(c[k]);
+    }
+    float blended[27] = {};
+    for (int corner = 0; corner < 8; ++corner) {
+        int dx = corner & 1, dy = (corner >> 1) & 1, dz = corner >> 2;
+        float w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+        const float* src = &g.coeffs[size_t(((c[2] + dz) * g.dims[1] + (c[1] + dy)) * g.dims[0] + (c[0] + dx)) * 27];
+        for (int i = 0; i < 27; ++i) blended[i] += w * src[i];
+    }
+    float y[9];
+    shBasis(d, y);
+    for (int ch = 0; ch < 3; ++ch) {
+        float s = 0.0f;
+        for (int i = 0; i < 9; ++i) s += blended[ch * 9 + i] * y[i];
+        rgb[ch] = std::max(0.0f, s);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    size_t points = 2'000'000;
+    int repeat = 3;
+    for (int i = 1; i + 1 < argc; ++i) {
+        if (std::string(argv[i]) == "--points") points = size_t(std::atol(argv[++i]));
+        else if (std::string(argv[i]) == "--repeat") repeat = std::max(1, std::atoi(argv[++i]));
+    }
+    const int hw = int(std::max(1u, std::thread::hardware_concurrency()));
+
+    // The paper's configuration: 3x3x3 voxels, 9-9-3 networks, fp16.
+    nrad::format::Asset a;
+    for (int k = 0; k < 3; ++k) {
+        a.grid.lower[k] = 0.0f;
+        a.grid.upper[k] = 1.0f;
+        a.grid.dims[k] = 3;
+    }
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+    for (uint32_t v = 0; v < 27; ++v) a.voxels.push_back({v, 1.0f});
+    for (size_t i = 0; i < 27 * a.topology.parameterCount(); ++i) a.weights.push_back(u(rng));
+    a.topology.outputTransform = std::getenv("NRAD_BENCH_LINEAR") ? nrad::format::OutputTransform::ClampedLinear : nrad::format::OutputTransform::Exponential;
+    std::vector<uint8_t> bytes = nrad::format::encode(a);
+    NradAsset asset = nullptr;
+    if (nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0) != NRAD_OK) return 1;
+    const double networkBytes = 27.0 * 240.0;
+
+    std::printf("runtime_bench: %zu points, 3x3x3 voxels of 9-9-3 fp16 (%.0f bytes of weights), %d hardware threads\n",
+                points, networkBytes, hw);
+    Points coherent = makePoints(points, true, a.grid, 2), incoherent = makePoints(points, false, a.grid, 3);
+    for (int threads : {1, hw}) {
+        int width;
+        double peak = fmaPeak(threads, width);
+        double peakEvals = peak / 108.0;
+        std::printf("\n%d thread(s): FMA peak %.2f G lane-FMA/s (%d-wide vectors) = %.1f M evaluations/s at 108 FMA each\n",
+                    threads, peak * 1e-9, width, peakEvals * 1e-6);
+        std::printf("  %-8s %-11s %14s %10s\n", "kernel", "batch", "M evals/s", "of peak");
+        for (NradKernel k : {NRAD_KERNEL_SCALAR, NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512}) {
+            if (nradSelectKernel(k) != NRAD_OK) continue;
+            const char* name = k == NRAD_KERNEL_SCALAR ? "scalar" : k == NRAD_KERNEL_AVX2 ? "avx2" : "avx512";
+            for (int coh = 1; coh >= 0; --coh) {
+                double e = evaluationsPerSecond(asset, coh ? coherent : incoherent, threads, repeat);
+                std::printf("  %-8s %-11s %14.1f %9.1f%%\n", name, coh ? "coherent" : "incoherent", e * 1e-6, 100.0 * e / peakEvals);
+            }
+        }
+        nradSelectKernel(NRAD_KERNEL_AUTO);
+    }
+
+    // SH probe grid with the same bytes as the networks: 27 fp32 coefficients = 108 bytes per probe.
+    int probesPerAxis = int(std::lround(std::cbrt(networkBytes / 108.0)));
+    ProbeGrid g{{probesPerAxis, probesPerAxis, probesPerAxis}, {0, 0, 0}, {1, 1, 1}, {}};
+    g.coeffs.resize(size_t(probesPerAxis * probesPerAxis * probesPerAxis) * 27);
+    for (float& c : g.coeffs) c = u(rng);
+    std::vector<float> out(3);
+    double best = 0.0;
+    for (int rep = 0; rep < repeat; ++rep) {
+        auto t0 = clock_type::now();
+        float acc = 0.0f;
+        for (size_t i = 0; i < points; ++i) {
+            probeLookup(g, &incoherent.p[3 * i], &incoherent.d[3 * i], out.data());
+            acc += out[0];
+        }
+        gSink = gSink + acc;
+        best = std::max(best, double(points) / seconds(t0, clock_type::now()));
+    }
+    NradKernel auto_ = nradActiveKernel();
+    double network = evaluationsPerSecond(asset, incoherent, 1, repeat);
+    std::printf("\nL2 SH probe grid of the same bytes (%d^3 probes x 27 fp32): %.1f M trilinear lookups/s on 1 thread; "
+                "networks (kernel %d, incoherent): %.1f M/s = %.2fx the probe lookup's rate\n",
+                probesPerAxis, best * 1e-6, int(auto_), network * 1e-6, network / best);
+    nradReleaseAsset(asset);
+    return 0;
+}
