@@ -25,6 +25,7 @@ struct NradAsset_ {
     size_t metadataLength = 0;
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
+    float gridFactor[3] = {1, 1, 1};  // dims / (upper - lower): exactly the factor format::gridCoordinate uses
 };
 
 namespace {
@@ -122,6 +123,8 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
         }
         std::string().swap(a->asset.metadata);
     }
+    for (int k = 0; k < 3; ++k)
+        a->gridFactor[k] = float(a->asset.grid.dims[k]) / (a->asset.grid.upper[k] - a->asset.grid.lower[k]);
     // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->asset.grid.voxelCount();
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
@@ -145,7 +148,7 @@ int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& f
             flag = NRAD_POINT_OUTSIDE_GRID;
             return -1;
         }
-        float t = format::gridCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]);
+        float t = (p[k] - g.lower[k]) * a.gridFactor[k];  // == format::gridCoordinate, without its division
         int i = int(t);
         c[k] = i >= int(g.dims[k]) ? int(g.dims[k]) - 1 : (i < 0 ? 0 : i);
         local[k] = 2.0f * (t - float(c[k])) - 1.0f;
