@@ -1,77 +1,87 @@
-// AVX2 + FMA kernel: 8 points per vector, weights broadcast. Compiled with -mavx2 -mfma; called only
-// after the CPU was checked.
+// AVX2 + FMA kernels: 8 points per vector. Compiled with -mavx2 -mfma; called only after the CPU was
+// checked.
 #include <immintrin.h>
 
 #include "kernels.h"
 
 namespace nrad::rt {
+namespace {
 
-// Scale, output transform and clamp of the three outputs of lanes [p, p + 8), stored to y.
-static inline void storeRadiance(const NetworkView& net, const __m256 a[3], float* y, int p) {
-    const __m256 zero = _mm256_setzero_ps();
-    const __m256 scale = _mm256_set1_ps(net.scale);
-    for (int c = 0; c < kOutputs; ++c) {
-        __m256 v = a[c];
-        if (net.exponential) {
-            __m256 xe = _mm256_min_ps(_mm256_max_ps(v, _mm256_set1_ps(kExpLo)), _mm256_set1_ps(kExpHi));
-            __m256 n = _mm256_round_ps(_mm256_mul_ps(xe, _mm256_set1_ps(kLog2e)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-            __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(kLn2Lo), _mm256_fnmadd_ps(n, _mm256_set1_ps(kLn2Hi), xe));
-            __m256 q = _mm256_set1_ps(kExpP[6]);
-            for (int k = 5; k >= 0; --k) q = _mm256_fmadd_ps(q, r, _mm256_set1_ps(kExpP[k]));
-            __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
-            v = _mm256_sub_ps(_mm256_mul_ps(q, _mm256_castsi256_ps(e)), _mm256_set1_ps(1.0f));
-        }
-        // max(v * scale, 0) with the zero first: a NaN in v yields 0.
-        _mm256_storeu_ps(y + c * kChunk + p, _mm256_max_ps(_mm256_mul_ps(v, scale), zero));
+struct Avx2 {
+    using F = __m256;
+    using I = __m256i;
+    static constexpr int kRegisters = 16;
+    static constexpr int W = 8;
+    static F load(const float* p) { return _mm256_loadu_ps(p); }
+    static void store(float* p, F v) { _mm256_storeu_ps(p, v); }
+    static void storei(int32_t* p, I v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
+    static F set1(float x) { return _mm256_set1_ps(x); }
+    static I seti(int x) { return _mm256_set1_epi32(x); }
+    static F zero() { return _mm256_setzero_ps(); }
+    static F add(F a, F b) { return _mm256_add_ps(a, b); }
+    static F sub(F a, F b) { return _mm256_sub_ps(a, b); }
+    static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
+    static F fmadd(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
+    static F fnmadd(F a, F b, F c) { return _mm256_fnmadd_ps(a, b, c); }
+    static F min(F a, F b) { return _mm256_min_ps(a, b); }
+    static F max(F a, F b) { return _mm256_max_ps(a, b); }
+    static F roundNearest(F a) { return _mm256_round_ps(a, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC); }
+    static I cvtTrunc(F a) { return _mm256_cvttps_epi32(a); }
+    static F cvtFloat(I a) { return _mm256_cvtepi32_ps(a); }
+    static I addi(I a, I b) { return _mm256_add_epi32(a, b); }
+    static I mullo(I a, I b) { return _mm256_mullo_epi32(a, b); }
+    static I mini(I a, I b) { return _mm256_min_epi32(a, b); }
+    static unsigned geMask(F a, F b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_GE_OQ))); }
+    static unsigned leMask(F a, F b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ))); }
+    static int32_t firstLane(I a) { return _mm_cvtsi128_si32(_mm256_castsi256_si128(a)); }
+    static unsigned equalMask(I a, I b) { return unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(a, b)))); }
+    static unsigned equalMask(F a, F b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_EQ_OQ))); }
+    // q 2^n by building 2^n's exponent bits.
+    static F timesPow2(F q, F n) {
+        return _mm256_mul_ps(q, _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23)));
     }
+    static void deinterleave3(F a, F b, F c, F out[3]);
+    static void interleave3(const F in[3], F out[3]);
+};
+
+}  // namespace
+
+namespace {
+#include "simd_impl.h"
+
+using Lanes = Interleave<8>;
+constexpr Lanes::Tables kTables = Lanes::tables();
+
+__m256i indices(const int32_t* table) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(table)); }
+
+// _mm256_blend_ps needs its mask as an immediate: one instantiation per (vector, component).
+template <int S, int C>
+__m256 blendFrom(__m256 into, __m256 v) {
+    return _mm256_blend_ps(into, v, int(Lanes::kMask<S, C>));
 }
 
-// The default topology, 9-9-3, with every size known at compile time: inputs, hidden units and outputs
-// stay in registers, and each hidden unit feeds the outputs as soon as it is computed.
-static void evalDefaultTopology(const NetworkView& net, const float* x, float* y) {
-    const float* W1 = net.params;
-    const float* b1 = W1 + 9 * 9;
-    const float* W2 = b1 + 9;
-    const float* b2 = W2 + 3 * 9;
-    const __m256 zero = _mm256_setzero_ps();
-    for (int p = 0; p < kChunk; p += 8) {
-        __m256 in[9];
-        for (int i = 0; i < 9; ++i) in[i] = _mm256_loadu_ps(x + i * kChunk + p);
-        __m256 out[3] = {_mm256_set1_ps(b2[0]), _mm256_set1_ps(b2[1]), _mm256_set1_ps(b2[2])};
-        for (int j = 0; j < 9; ++j) {
-            __m256 h = _mm256_set1_ps(b1[j]);
-            for (int i = 0; i < 9; ++i) h = _mm256_fmadd_ps(_mm256_set1_ps(W1[j * 9 + i]), in[i], h);
-            h = _mm256_max_ps(h, zero);
-            for (int c = 0; c < 3; ++c) out[c] = _mm256_fmadd_ps(_mm256_set1_ps(W2[c * 9 + j]), h, out[c]);
-        }
-        storeRadiance(net, out, y, p);
-    }
+void Avx2::deinterleave3(F a, F b, F c, F out[3]) {
+    out[0] = _mm256_permutevar8x32_ps(blendFrom<2, 0>(blendFrom<1, 0>(a, b), c), indices(kTables.gather[0]));
+    out[1] = _mm256_permutevar8x32_ps(blendFrom<2, 1>(blendFrom<1, 1>(a, b), c), indices(kTables.gather[1]));
+    out[2] = _mm256_permutevar8x32_ps(blendFrom<2, 2>(blendFrom<1, 2>(a, b), c), indices(kTables.gather[2]));
 }
 
-void evalChunkAvx2(const NetworkView& net, const float* x, float* y) {
-    if (net.hiddenLayers == 1 && net.hiddenWidths[0] == 9) return evalDefaultTopology(net, x, y);
-    __m256 a[kMaxWidth], b[kMaxWidth];
-    const __m256 zero = _mm256_setzero_ps();
-    for (int p = 0; p < kChunk; p += 8) {
-        int in = kInputs;
-        for (int i = 0; i < kInputs; ++i) a[i] = _mm256_loadu_ps(x + i * kChunk + p);
-        const float* w = net.params;
-        for (uint32_t l = 0; l <= net.hiddenLayers; ++l) {
-            bool last = l == net.hiddenLayers;
-            int out = last ? kOutputs : int(net.hiddenWidths[l]);
-            const float* bias = w + out * in;
-            for (int o = 0; o < out; ++o) {
-                __m256 s = _mm256_set1_ps(bias[o]);
-                const float* row = w + o * in;
-                for (int i = 0; i < in; ++i) s = _mm256_fmadd_ps(_mm256_set1_ps(row[i]), a[i], s);
-                b[o] = last ? s : _mm256_max_ps(s, zero);
-            }
-            for (int o = 0; o < out; ++o) a[o] = b[o];
-            w = bias + out;
-            in = out;
-        }
-        storeRadiance(net, a, y, p);
-    }
+void Avx2::interleave3(const F in[3], F out[3]) {
+    F q[3];
+    for (int k = 0; k < 3; ++k) q[k] = _mm256_permutevar8x32_ps(in[k], indices(kTables.scatter[k]));
+    out[0] = blendFrom<0, 2>(blendFrom<0, 1>(q[0], q[1]), q[2]);
+    out[1] = blendFrom<1, 2>(blendFrom<1, 1>(q[0], q[1]), q[2]);
+    out[2] = blendFrom<2, 2>(blendFrom<2, 1>(q[0], q[1]), q[2]);
+}
+}  // namespace
+
+void evalChunkAvx2(const NetworkView& net, const float* x, float* y) { evalChunk<Avx2>(net, x, y); }
+
+void evalBlocksAvx2(const BlockContext& ctx, size_t blocks, Deferred& def) {
+    if (ctx.io.stride == 1)
+        evalBlocks<Avx2, 1>(ctx, blocks, def);
+    else
+        evalBlocks<Avx2, 3>(ctx, blocks, def);
 }
 
 }  // namespace nrad::rt

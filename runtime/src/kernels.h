@@ -35,4 +35,55 @@ void evalChunkAvx2(const NetworkView& net, const float* x, float* y);
 void evalChunkAvx512(const NetworkView& net, const float* x, float* y);
 #endif
 
+// ----- whole batches, a vector of points at a time (the SIMD kernels only) -----------------------------
+
+// The grid as locate() in runtime.cpp uses it; `dense` maps every voxel to its network or -1.
+struct LocateGrid {
+    float lower[3], upper[3];
+    float factor[3];  // dims / (upper - lower)
+    uint32_t dims[3];
+    const int32_t* dense;
+};
+
+// Where a batch's points come from and where their results go: interleaved (stride 3, the x pointers
+// address the whole array) or SoA (stride 1, separate arrays).
+struct BatchIo {
+    const float* p[3];
+    const float* n[3];
+    const float* d[3];
+    float* out[3];
+    size_t stride;
+    uint8_t* flags;  // may be null
+};
+
+struct BlockContext {
+    LocateGrid grid;
+    NetworkView networks;  // of network 0; params advance by paramsPerNetwork per network
+    uint32_t paramsPerNetwork;
+    const float* scales;  // per network
+    BatchIo io;
+};
+
+// What a block driver leaves to the grouped (sorted) pass.
+struct Deferred {
+    uint32_t* blocks;  // blocks with an invalid, outside or empty-voxel point: located one point at a time
+    size_t blockCount;
+    uint32_t* index;  // points located in several voxels: point, network and position in the voxel
+    int32_t* network;
+    float* local;  // 3 per point
+    size_t count;
+};
+
+// Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid and in one
+// occupied voxel is located and evaluated in vector registers, with its results and flags written; a
+// located block spanning several voxels goes to def.index/network/local (flags written); any other block
+// goes to def.blocks untouched.
+using BlockDriver = void (*)(const BlockContext& ctx, size_t blocks, Deferred& def);
+
+#if defined(__x86_64__) || defined(_M_X64)
+constexpr int kAvx2Width = 8, kAvx512Width = 16;
+void evalBlocksAvx2(const BlockContext& ctx, size_t blocks, Deferred& def);
+void evalBlocksAvx512(const BlockContext& ctx, size_t blocks, Deferred& def);
+#endif
+
 }  // namespace nrad::rt

@@ -26,6 +26,7 @@ struct NradAsset_ {
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
     float gridFactor[3] = {1, 1, 1};  // dims / (upper - lower): exactly the factor format::gridCoordinate uses
+    std::vector<float> scales;  // per network: the voxel's output scale
 };
 
 namespace {
@@ -123,6 +124,7 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
         }
         std::string().swap(a->asset.metadata);
     }
+    for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
     for (int k = 0; k < 3; ++k)
         a->gridFactor[k] = float(a->asset.grid.dims[k]) / (a->asset.grid.upper[k] - a->asset.grid.lower[k]);
     // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
@@ -173,71 +175,131 @@ int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& f
 
 bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
 
-// Where a batch's points come from and go to: interleaved (stride 3) or SoA (stride 1, separate arrays).
-struct BatchView {
-    const float* p[3];
-    const float* n[3];
-    const float* d[3];
-    float* out[3];
-    size_t stride;
-    uint8_t* flags;
-};
+rt::BlockDriver blockDriver(NradKernel k, int& width) {
+#if defined(__x86_64__) || defined(_M_X64)
+    if (k == NRAD_KERNEL_AVX512) {
+        width = rt::kAvx512Width;
+        return rt::evalBlocksAvx512;
+    }
+    if (k == NRAD_KERNEL_AVX2) {
+        width = rt::kAvx2Width;
+        return rt::evalBlocksAvx2;
+    }
+#endif
+    (void)k;
+    width = 0;
+    return nullptr;
+}
 
 struct Scratch {
+    std::vector<uint32_t> blocks, index, order, start;
     std::vector<int32_t> network;
-    std::vector<float> local;  // 3 per point
-    std::vector<uint32_t> order, start;
+    std::vector<float> local;  // 3 per deferred point
 };
 
-NradStatus evaluateBatch(const NradAsset_& a, size_t count, const BatchView& v) {
+// Locates point i one at a time (the reference path): a located point joins the deferred list, any other
+// gets zero radiance and its flag.
+void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, rt::Deferred& def) {
+    size_t at = i * v.stride;
+    float p[3] = {v.p[0][at], v.p[1][at], v.p[2][at]};
+    float n[3] = {v.n[0][at], v.n[1][at], v.n[2][at]};
+    float d[3] = {v.d[0][at], v.d[1][at], v.d[2][at]};
+    uint8_t flag = NRAD_POINT_OK;
+    int32_t net = -1;
+    if (!finite3(p) || !finite3(n) || !finite3(d))
+        flag = NRAD_POINT_INVALID_INPUT;
+    else
+        net = locate(a, p, &def.local[def.count * 3], flag);
+    if (v.flags) v.flags[i] = flag;
+    if (net < 0) {
+        v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
+        return;
+    }
+    def.index[def.count] = uint32_t(i);
+    def.network[def.count++] = net;
+}
+
+NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v) {
+    if (count > UINT32_MAX) {  // point indices are 32-bit; split huge batches
+        for (size_t first = 0; first < count; first += UINT32_MAX) {
+            rt::BatchIo part = v;
+            for (int c = 0; c < 3; ++c) {
+                part.p[c] += first * v.stride;
+                part.n[c] += first * v.stride;
+                part.d[c] += first * v.stride;
+                part.out[c] += first * v.stride;
+            }
+            if (part.flags) part.flags += first;
+            evaluateBatch(a, std::min<size_t>(UINT32_MAX, count - first), part);
+        }
+        return NRAD_OK;
+    }
     thread_local Scratch s;
     const size_t nets = a.asset.voxels.size();
+    s.index.resize(count);
     s.network.resize(count);
     s.local.resize(count * 3);
-    // 1. Locate every point; invalid and unlocated points get zero radiance and their flag.
-    for (size_t i = 0; i < count; ++i) {
-        size_t at = i * v.stride;
-        float p[3] = {v.p[0][at], v.p[1][at], v.p[2][at]};
-        float n[3] = {v.n[0][at], v.n[1][at], v.n[2][at]};
-        float d[3] = {v.d[0][at], v.d[1][at], v.d[2][at]};
-        uint8_t flag = NRAD_POINT_OK;
-        int32_t net = -1;
-        if (!finite3(p) || !finite3(n) || !finite3(d))
-            flag = NRAD_POINT_INVALID_INPUT;
-        else
-            net = locate(a, p, &s.local[i * 3], flag);
-        s.network[i] = net;
-        if (v.flags) v.flags[i] = flag;
-        if (net < 0) v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
+    rt::Deferred def{nullptr, 0, s.index.data(), s.network.data(), s.local.data(), 0};
+    const NradKernel kind = activeKernel();
+    const rt::ChunkKernel kernel = kernelFunction(kind);
+    const format::Topology& t = a.asset.topology;
+    const bool exponential = t.outputTransform == format::OutputTransform::Exponential;
+    const rt::NetworkView first{a.asset.weights.data(), uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data(),
+                                a.scales.empty() ? 1.0f : a.scales[0], exponential};
+
+    // 1. Whole vectors of points through the SIMD block driver: a vector of points in one voxel (the
+    //    common case for coherent batches) is located and evaluated in registers there.
+    int width = 0;
+    rt::BlockDriver driver = a.denseLookup.empty() ? nullptr : blockDriver(kind, width);
+    size_t blocks = driver ? count / size_t(width) : 0;
+    if (blocks > 0) {
+        s.blocks.resize(blocks);
+        def.blocks = s.blocks.data();
+        rt::BlockContext ctx{};
+        const format::Grid& g = a.asset.grid;
+        for (int k = 0; k < 3; ++k) {
+            ctx.grid.lower[k] = g.lower[k];
+            ctx.grid.upper[k] = g.upper[k];
+            ctx.grid.factor[k] = a.gridFactor[k];
+            ctx.grid.dims[k] = g.dims[k];
+        }
+        ctx.grid.dense = a.denseLookup.data();
+        ctx.networks = first;
+        ctx.paramsPerNetwork = a.paramsPerNetwork;
+        ctx.scales = a.scales.data();
+        ctx.io = v;
+        driver(ctx, blocks, def);
     }
-    // 2. Group the points by network (counting sort), so every chunk runs one network.
+    // 2. The rest one point at a time: blocks with an invalid, outside or empty-voxel point, and the tail.
+    for (size_t b = 0; b < def.blockCount; ++b)
+        for (size_t i = size_t(def.blocks[b]) * size_t(width), end = i + size_t(width); i < end; ++i) locateOne(a, v, i, def);
+    for (size_t i = blocks * size_t(width); i < count; ++i) locateOne(a, v, i, def);
+    if (def.count == 0) return NRAD_OK;
+
+    // 3. Group the deferred points by network (counting sort), so every chunk runs one network.
     s.start.assign(nets + 1, 0);
-    for (size_t i = 0; i < count; ++i)
-        if (s.network[i] >= 0) ++s.start[size_t(s.network[i]) + 1];
+    for (size_t e = 0; e < def.count; ++e) ++s.start[size_t(def.network[e]) + 1];
     for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
-    s.order.resize(s.start[nets]);
+    s.order.resize(def.count);
     {
         std::vector<uint32_t>& fill = s.start;  // reuse as running offsets, restored below
-        for (size_t i = 0; i < count; ++i)
-            if (s.network[i] >= 0) s.order[fill[size_t(s.network[i])]++] = uint32_t(i);
+        for (size_t e = 0; e < def.count; ++e) s.order[fill[size_t(def.network[e])]++] = uint32_t(e);
         for (size_t k = nets; k > 0; --k) fill[k] = fill[k - 1];
         fill[0] = 0;
     }
-    // 3. Run each group in chunks: gather SoA inputs, evaluate, apply the output transform, scatter.
-    rt::ChunkKernel kernel = kernelFunction(activeKernel());
-    const format::Topology& t = a.asset.topology;
-    const bool exponential = t.outputTransform == format::OutputTransform::Exponential;
+    // 4. Run each group in chunks: gather SoA inputs, evaluate (output transform included), scatter.
     alignas(64) float x[rt::kInputs * rt::kChunk];
     alignas(64) float y[rt::kOutputs * rt::kChunk];
     for (size_t k = 0; k < nets; ++k) {
-        rt::NetworkView net{a.asset.weights.data() + k * a.paramsPerNetwork, uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data(),
-                            a.asset.voxels[k].scale, exponential};
+        rt::NetworkView net = first;
+        net.params += k * a.paramsPerNetwork;
+        net.scale = a.scales[k];
         for (uint32_t g = s.start[k]; g < s.start[k + 1]; g += rt::kChunk) {
             uint32_t n = std::min<uint32_t>(rt::kChunk, s.start[k + 1] - g);
             for (uint32_t j = 0; j < n; ++j) {
-                size_t i = s.order[g + j], at = i * v.stride;
+                size_t e = s.order[g + j], at = size_t(def.index[e]) * v.stride;
                 for (int c = 0; c < 3; ++c) {
-                    x[(0 + c) * rt::kChunk + j] = s.local[i * 3 + size_t(c)];
+                    x[(0 + c) * rt::kChunk + j] = def.local[e * 3 + size_t(c)];
                     x[(3 + c) * rt::kChunk + j] = v.n[c][at];
                     x[(6 + c) * rt::kChunk + j] = v.d[c][at];
                 }
@@ -245,8 +307,8 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const BatchView& v) 
             for (int r = 0; r < rt::kInputs; ++r) std::fill(x + r * rt::kChunk + n, x + (r + 1) * rt::kChunk, 0.0f);
             kernel(net, x, y);
             for (uint32_t j = 0; j < n; ++j) {
-                size_t at = size_t(s.order[g + j]) * v.stride;
-                for (int c = 0; c < 3; ++c) v.out[c][at] = y[c * rt::kChunk + int(j)];  // radiance, from the kernel
+                size_t at = size_t(def.index[s.order[g + j]]) * v.stride;
+                for (int c = 0; c < 3; ++c) v.out[c][at] = y[c * rt::kChunk + int(j)];
             }
         }
     }
@@ -338,7 +400,8 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.outputTransform = uint32_t(t.outputTransform);
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
-                        a->asset.voxels.size() * sizeof(format::VoxelEntry) + a->denseLookup.size() * sizeof(int32_t) +
+                        a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
+                        a->denseLookup.size() * sizeof(int32_t) +
                         a->metadataCopy.size();
         *info = r;
         return NRAD_OK;
@@ -363,8 +426,8 @@ NradStatus nradEvaluate(NradAsset a, const float position[3], const float normal
     if (!a || !position || !normal || !direction || !rgb) return NRAD_ERROR_INVALID_ARGUMENT;
     return guarded([&] {
         uint8_t flag = 0;
-        BatchView v{{position, position + 1, position + 2}, {normal, normal + 1, normal + 2},
-                    {direction, direction + 1, direction + 2}, {rgb, rgb + 1, rgb + 2}, 3, &flag};
+        rt::BatchIo v{{position, position + 1, position + 2}, {normal, normal + 1, normal + 2},
+                      {direction, direction + 1, direction + 2}, {rgb, rgb + 1, rgb + 2}, 3, &flag};
         NradStatus st = evaluateBatch(*a, 1, v);
         if (pointFlags) *pointFlags = flag;
         return st;
@@ -376,8 +439,8 @@ NradStatus nradEvaluateBatch(NradAsset a, size_t count, const float* positions, 
     if (!a || (count > 0 && (!positions || !normals || !directions || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
     if (count == 0) return NRAD_OK;
     return guarded([&] {
-        BatchView v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
-                    {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
+        rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
+                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
         return evaluateBatch(*a, count, v);
     });
 }
@@ -388,7 +451,7 @@ NradStatus nradEvaluateBatchSoA(NradAsset a, size_t count, const NradBatchSoA* b
     if (!b->px || !b->py || !b->pz || !b->nx || !b->ny || !b->nz || !b->dx || !b->dy || !b->dz || !b->r || !b->g || !b->b)
         return NRAD_ERROR_INVALID_ARGUMENT;
     return guarded([&] {
-        BatchView v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags};
+        rt::BatchIo v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags};
         return evaluateBatch(*a, count, v);
     });
 }

@@ -41,6 +41,26 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         uint32_t flag;
         nradEvaluate(asset, p.data(), nrm.data(), dir.data(), one, &flag);
         if (std::memcmp(one, rgb.data(), sizeof one) != 0) std::abort();  // single and batch agree
+        // A coherent batch in SoA layout: 64 points in one voxel (so whole vectors take the SIMD kernels'
+        // locate-and-evaluate path), the voxel and the directions from the input's bytes.
+        const size_t m = 64;
+        std::vector<float> soa[12];
+        for (auto& v : soa) v.resize(m);
+        std::vector<uint8_t> sf(m);
+        for (size_t i = 0; i < m; ++i)
+            for (int k = 0; k < 3; ++k) {
+                float extent = (info.gridUpper[k] - info.gridLower[k]) / float(info.gridDims[k]);
+                uint32_t cell = uint32_t(data[size_t(k) % size]) % info.gridDims[k];
+                soa[k][i] = info.gridLower[k] + extent * (float(cell) + 0.25f + 0.5f * float(i) / float(m));
+                soa[3 + k][i] = float(int(data[(i * 5 + size_t(k)) % size]) - 128) / 128.0f;
+                soa[6 + k][i] = float(int(data[(i * 11 + size_t(k)) % size]) - 128) / 128.0f;
+            }
+        NradBatchSoA b{soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), soa[5].data(), soa[6].data(),
+                       soa[7].data(), soa[8].data(), soa[9].data(), soa[10].data(), soa[11].data(), sf.data()};
+        nradEvaluateBatchSoA(asset, m, &b);
+        for (int c = 9; c < 12; ++c)
+            for (float v : soa[c])
+                if (!std::isfinite(v) || v < 0.0f) std::abort();
         nradReleaseAsset(asset);
     }
     return 0;

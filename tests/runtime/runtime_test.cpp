@@ -6,6 +6,7 @@
 #include <nrad/nrad.hpp>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <thread>
 
@@ -142,6 +143,105 @@ TEST(Runtime, EveryKernelMatchesAPlainForwardPass) {
                 }
                 EXPECT_GT(located, 300);
                 EXPECT_LT(located, 700);
+            }
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+// Runs of points in one voxel, as a renderer's coherent batches have: most vectors of 8 or 16 points lie
+// in one voxel and take the SIMD kernels' vector locate-and-evaluate path; run lengths that are not
+// multiples of the vector width make vectors span two voxels; bad points (outside, in an empty voxel,
+// non-finite) sprinkled among them send their vector to the one-point-at-a-time path; voxel faces and
+// the grid's upper face exercise the voxel rule's borders.
+Points coherentPoints(const format::Asset& a, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
+    const format::Grid& g = a.grid;
+    Points pts;
+    auto push = [&](const glm::vec3& p, const glm::vec3& n, const glm::vec3& d) {
+        for (int k = 0; k < 3; ++k) {
+            pts.p.push_back(p[k]);
+            pts.n.push_back(n[k]);
+            pts.d.push_back(d[k]);
+        }
+    };
+    for (int round = 0; round < 3; ++round)
+        for (uint32_t v = 0; v < g.voxelCount(); ++v) {
+            uint32_t c[3] = {v % g.dims[0], (v / g.dims[0]) % g.dims[1], v / (g.dims[0] * g.dims[1])};
+            int run = int(rng() % 70);
+            for (int i = 0; i < run; ++i) {
+                glm::vec3 p;
+                for (int k = 0; k < 3; ++k) {
+                    float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+                    float f = i % 29 == 3 ? 0.0f : i % 31 == 5 ? 1.0f : u(rng);  // faces now and then
+                    p[k] = std::min(g.upper[k], g.lower[k] + size * (float(c[k]) + f));
+                }
+                glm::vec3 n = glm::normalize(glm::vec3(s(rng), s(rng), s(rng)) + glm::vec3(0, 0, 1e-3f));
+                glm::vec3 d = glm::normalize(glm::vec3(s(rng), s(rng), s(rng)) + glm::vec3(1e-3f, 0, 0));
+                uint32_t r = rng() % 97;
+                if (r == 0) p.x = g.upper[0] + 0.5f;  // outside
+                if (r == 1) n.y = std::nanf("");
+                if (r == 2) d.z = std::numeric_limits<float>::infinity();
+                push(p, n, d);
+            }
+        }
+    return pts;
+}
+
+TEST(Runtime, CoherentRunsInBothLayoutsMatchAPlainForwardPass) {
+    for (auto hidden : {std::vector<uint32_t>{9}, std::vector<uint32_t>{16, 8}}) {
+        format::Asset a = randomAsset(hidden, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 21,
+                                      glm::uvec3(3, 3, 3));
+        std::vector<uint8_t> bytes = format::encode(a);
+        nrad::Asset asset;
+        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+        Points pts = coherentPoints(a, 4);
+        const size_t n = pts.p.size() / 3;
+        ASSERT_GT(n, 1500u);
+        std::vector<glm::vec3> ref(n);
+        std::vector<uint32_t> refFlag(n);
+        size_t counts[8] = {};
+        for (size_t i = 0; i < n; ++i) {
+            ref[i] = reference(a, {pts.p[3 * i], pts.p[3 * i + 1], pts.p[3 * i + 2]}, {pts.n[3 * i], pts.n[3 * i + 1], pts.n[3 * i + 2]},
+                               {pts.d[3 * i], pts.d[3 * i + 1], pts.d[3 * i + 2]}, refFlag[i]);
+            bool finite = true;
+            for (int k = 0; k < 3; ++k) finite &= std::isfinite(pts.n[3 * i + size_t(k)]) && std::isfinite(pts.d[3 * i + size_t(k)]);
+            if (!finite) refFlag[i] = NRAD_POINT_INVALID_INPUT, ref[i] = glm::vec3(0.0f);
+            ++counts[refFlag[i]];
+        }
+        EXPECT_GT(counts[NRAD_POINT_OK], n / 3);
+        EXPECT_GT(counts[NRAD_POINT_EMPTY_VOXEL], n / 3);
+        EXPECT_GT(counts[NRAD_POINT_OUTSIDE_GRID], 5u);
+        EXPECT_GT(counts[NRAD_POINT_INVALID_INPUT], 10u);
+        std::vector<float> soa[12];
+        for (int k = 0; k < 9; ++k)
+            for (size_t i = 0; i < n; ++i) soa[k].push_back((k < 3 ? pts.p : k < 6 ? pts.n : pts.d)[3 * i + size_t(k % 3)]);
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            // Every prefix length modulo the vector widths, from several starting offsets.
+            for (size_t offset : {size_t(0), size_t(1), size_t(7), size_t(13)}) {
+                const size_t m = n - offset;
+                std::vector<float> rgb(3 * m, -1.0f);
+                std::vector<uint8_t> flags(m, 99);
+                ASSERT_EQ(asset.evaluateBatch(m, &pts.p[3 * offset], &pts.n[3 * offset], &pts.d[3 * offset], rgb.data(), flags.data()),
+                          NRAD_OK);
+                for (int c = 9; c < 12; ++c) soa[c].assign(m, -1.0f);
+                std::vector<uint8_t> soaFlags(m, 99);
+                NradBatchSoA b{soa[0].data() + offset, soa[1].data() + offset, soa[2].data() + offset, soa[3].data() + offset,
+                               soa[4].data() + offset, soa[5].data() + offset, soa[6].data() + offset, soa[7].data() + offset,
+                               soa[8].data() + offset, soa[9].data(), soa[10].data(), soa[11].data(), soaFlags.data()};
+                ASSERT_EQ(asset.evaluateBatch(m, b), NRAD_OK);
+                for (size_t j = 0; j < m; ++j) {
+                    size_t i = j + offset;
+                    ASSERT_EQ(flags[j], refFlag[i]) << "kernel " << k << " point " << i;
+                    ASSERT_EQ(soaFlags[j], refFlag[i]) << "kernel " << k << " point " << i;
+                    for (int c = 0; c < 3; ++c) {
+                        ASSERT_NEAR(rgb[3 * j + size_t(c)], ref[i][c], 2e-5f * std::max(1.0f, std::abs(ref[i][c])))
+                            << "kernel " << k << " point " << i;
+                        ASSERT_EQ(soa[9 + c][j], rgb[3 * j + size_t(c)]) << "kernel " << k << " point " << i;
+                    }
+                }
             }
         }
     }

@@ -348,6 +348,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         if (!std::isfinite(g.lower[k]) || !std::isfinite(g.upper[k]) || !(g.upper[k] > g.lower[k]) ||
             !std::isfinite(g.upper[k] - g.lower[k]) || g.dims[k] == 0 || g.dims[k] > kMaxGridDim)
             return DecodeStatus::BadGrid;
+        // The voxel rule's factor dims / (upper - lower) must be finite too (a subnormal extent is not).
+        if (!std::isfinite(float(g.dims[k]) / (g.upper[k] - g.lower[k]))) return DecodeStatus::BadGrid;
     }
     if (rd32(grid + 36) != 0) return DecodeStatus::BadGrid;
 

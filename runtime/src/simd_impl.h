@@ -1,0 +1,253 @@
+// The SIMD evaluation code, written once over a small vector-traits type V that kernel_avx2.cpp and
+// kernel_avx512.cpp define. Each of those files includes this header inside its own anonymous namespace
+// and compiles it for its own instruction set, so no inline code is shared between translation units
+// built with different -m flags (which could let the linker pick an AVX-512 copy for a scalar caller).
+// No standard-library templates are used here for the same reason.
+//
+// V provides: F (vector of W floats), I (vector of W int32), W, and
+//   load/store (unaligned), set1, seti, zero, add, sub, mul, fmadd(a, b, c) = a b + c, fnmadd = c - a b,
+//   min, max (both return the second operand when either is NaN, like the x86 instructions),
+//   roundNearest, timesPow2(q, n) = q 2^n for integral n in [-126, 127], cvtTrunc (F -> I), cvtFloat
+//   (I -> F), addi, mullo, mini, storei, firstLane (lane 0 of an I), geMask/leMask (ordered compares)
+//   and equalMask (of two F or two I) -> bit mask of W lanes,
+//   deinterleave3 / interleave3 (x0 y0 z0 x1 ... <-> three vectors).
+
+// exp(x) - 1 in the polynomial of kernels.h (input clamped to [kExpLo, kExpHi]).
+template <class V>
+inline typename V::F expMinusOne(typename V::F v) {
+    using F = typename V::F;
+    F xe = V::min(V::max(v, V::set1(kExpLo)), V::set1(kExpHi));
+    F n = V::roundNearest(V::mul(xe, V::set1(kLog2e)));
+    F r = V::fnmadd(n, V::set1(kLn2Lo), V::fnmadd(n, V::set1(kLn2Hi), xe));
+    F q = V::set1(kExpP[6]);
+    for (int k = 5; k >= 0; --k) q = V::fmadd(q, r, V::set1(kExpP[k]));
+    return V::sub(V::timesPow2(q, n), V::set1(1.0f));
+}
+
+// The network's three outputs -> radiance: output transform, the voxel's scale, clamped at 0. The zero is
+// max's first operand, so a NaN output yields 0.
+template <class V>
+inline void toRadiance(const NetworkView& net, typename V::F out[3]) {
+    for (int c = 0; c < kOutputs; ++c) {
+        typename V::F v = net.exponential ? expMinusOne<V>(out[c]) : out[c];
+        out[c] = V::max(V::mul(v, V::set1(net.scale)), V::zero());
+    }
+}
+
+// Any topology, layer by layer through two arrays of vectors.
+template <class V>
+__attribute__((noinline)) void evalNetworkGeneric(const NetworkView& net, const typename V::F in[kInputs],
+                                                  typename V::F out[kOutputs]) {
+    using F = typename V::F;
+    const F zero = V::zero();
+    F a[kMaxWidth], b[kMaxWidth];
+    int width = kInputs;
+    for (int i = 0; i < kInputs; ++i) a[i] = in[i];
+    const float* w = net.params;
+    for (uint32_t l = 0; l <= net.hiddenLayers; ++l) {
+        bool last = l == net.hiddenLayers;
+        int next = last ? kOutputs : int(net.hiddenWidths[l]);
+        const float* bias = w + next * width;
+        for (int o = 0; o < next; ++o) {
+            F s = V::set1(bias[o]);
+            const float* row = w + o * width;
+            for (int i = 0; i < width; ++i) s = V::fmadd(V::set1(row[i]), a[i], s);
+            b[o] = last ? s : V::max(s, zero);
+        }
+        for (int o = 0; o < next; ++o) a[o] = b[o];
+        w = bias + next;
+        width = next;
+    }
+    for (int c = 0; c < kOutputs; ++c) out[c] = a[c];
+}
+
+// One network on W points: in[9] -> out[3] (network outputs, before the output transform).
+template <class V>
+__attribute__((always_inline)) inline void evalNetwork(const NetworkView& net, const typename V::F in[kInputs],
+                                                       typename V::F out[kOutputs]) {
+    using F = typename V::F;
+    if (!(net.hiddenLayers == 1 && net.hiddenWidths[0] == 9)) return evalNetworkGeneric<V>(net, in, out);
+    // The default topology, 9-9-3, every size known at compile time: everything stays in registers, and
+    // each hidden unit feeds the outputs as soon as it is computed. With 32 vector registers, two partial
+    // sums per hidden unit and per output halve the chains of dependent multiply-adds; with 16 they would
+    // spill.
+    const F zero = V::zero();
+    const float* W1 = net.params;
+    const float* b1 = W1 + 9 * 9;
+    const float* W2 = b1 + 9;
+    const float* b2 = W2 + 3 * 9;
+    if (V::kRegisters < 32) {
+        for (int c = 0; c < 3; ++c) out[c] = V::set1(b2[c]);
+        for (int j = 0; j < 9; ++j) {
+            F h = V::set1(b1[j]);
+            for (int i = 0; i < 9; ++i) h = V::fmadd(V::set1(W1[j * 9 + i]), in[i], h);
+            h = V::max(h, zero);
+            for (int c = 0; c < 3; ++c) out[c] = V::fmadd(V::set1(W2[c * 9 + j]), h, out[c]);
+        }
+        return;
+    }
+    F o0[3], o1[3];
+    for (int c = 0; c < 3; ++c) {
+        o0[c] = V::set1(b2[c]);
+        o1[c] = zero;
+    }
+    for (int j = 0; j < 9; ++j) {
+        F h0 = V::set1(b1[j]), h1 = V::mul(V::set1(W1[j * 9 + 8]), in[8]);
+        for (int i = 0; i < 8; i += 2) {
+            h0 = V::fmadd(V::set1(W1[j * 9 + i]), in[i], h0);
+            h1 = V::fmadd(V::set1(W1[j * 9 + i + 1]), in[i + 1], h1);
+        }
+        F h = V::max(V::add(h0, h1), zero);
+        for (int c = 0; c < 3; ++c) {
+            if (j % 2 == 0)
+                o0[c] = V::fmadd(V::set1(W2[c * 9 + j]), h, o0[c]);
+            else
+                o1[c] = V::fmadd(V::set1(W2[c * 9 + j]), h, o1[c]);
+        }
+    }
+    for (int c = 0; c < 3; ++c) out[c] = V::add(o0[c], o1[c]);
+}
+
+// ChunkKernel: kChunk points in SoA rows.
+template <class V>
+void evalChunk(const NetworkView& net, const float* x, float* y) {
+    for (int p = 0; p < kChunk; p += V::W) {
+        typename V::F in[kInputs], out[kOutputs];
+        for (int i = 0; i < kInputs; ++i) in[i] = V::load(x + i * kChunk + p);
+        evalNetwork<V>(net, in, out);
+        toRadiance<V>(net, out);
+        for (int c = 0; c < kOutputs; ++c) V::store(y + c * kChunk + p, out[c]);
+    }
+}
+
+// Three coordinates of W points starting at point `first`: SoA (Stride 1) or interleaved (Stride 3).
+template <class V, int Stride>
+inline void load3(const float* const src[3], size_t first, typename V::F v[3]) {
+    if (Stride == 1) {
+        for (int k = 0; k < 3; ++k) v[k] = V::load(src[k] + first);
+    } else {
+        const float* s = src[0] + 3 * first;
+        V::deinterleave3(V::load(s), V::load(s + V::W), V::load(s + 2 * V::W), v);
+    }
+}
+
+template <class V, int Stride>
+inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) {
+    if (Stride == 1) {
+        for (int k = 0; k < 3; ++k) V::store(dst[k] + first, v[k]);
+    } else {
+        typename V::F o[3];
+        V::interleave3(v, o);
+        float* d = dst[0] + 3 * first;
+        for (int k = 0; k < 3; ++k) V::store(d + k * V::W, o[k]);
+    }
+}
+
+// BlockDriver (kernels.h), for one layout.
+template <class V, int Stride>
+void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
+    using F = typename V::F;
+    using I = typename V::I;
+    constexpr int W = V::W;
+    constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
+    const LocateGrid& g = ctx.grid;
+    const F one = V::set1(1.0f), minusOne = V::set1(-1.0f), two = V::set1(2.0f);
+    for (size_t b = 0; b < blocks; ++b) {
+        const size_t first = b * size_t(W);
+        F p[3], n[3], d[3];
+        load3<V, Stride>(ctx.io.p, first, p);
+        load3<V, Stride>(ctx.io.n, first, n);
+        load3<V, Stride>(ctx.io.d, first, d);
+        // Finite normal and direction: 0 x (their sum) is 0, not NaN (a sum that overflows only sends the
+        // block to the general path). Positions inside [lower, upper] (false for NaN): the format's rule.
+        F sum = V::add(V::add(V::add(n[0], n[1]), V::add(n[2], d[0])), V::add(d[1], d[2]));
+        unsigned ok = V::equalMask(V::mul(sum, V::zero()), V::zero());
+        for (int k = 0; k < 3; ++k) ok &= V::geMask(p[k], V::set1(g.lower[k])) & V::leMask(p[k], V::set1(g.upper[k]));
+        if (ok != all) {  // some point is invalid or outside: the block takes the general path
+            def.blocks[def.blockCount++] = uint32_t(b);
+            continue;
+        }
+        // The voxel and the position inside it, exactly as locate() in runtime.cpp computes them.
+        F local[3];
+        I c[3];
+        for (int k = 0; k < 3; ++k) {
+            F t = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
+            c[k] = V::mini(V::cvtTrunc(t), V::seti(int(g.dims[k]) - 1));  // t >= 0 here
+            F l = V::sub(V::mul(two, V::sub(t, V::cvtFloat(c[k]))), one);
+            local[k] = V::min(V::max(l, minusOne), one);
+        }
+        I voxel = V::addi(c[0], V::mullo(V::seti(int(g.dims[0])), V::addi(c[1], V::mullo(V::seti(int(g.dims[1])), c[2]))));
+        const int32_t voxel0 = V::firstLane(voxel);
+        if (V::equalMask(voxel, V::seti(voxel0)) == all) {
+            int32_t network = g.dense[voxel0];
+            if (network < 0) {
+                def.blocks[def.blockCount++] = uint32_t(b);
+                continue;
+            }
+            NetworkView net = ctx.networks;
+            net.params += size_t(network) * ctx.paramsPerNetwork;
+            net.scale = ctx.scales[network];
+            F in[kInputs] = {local[0], local[1], local[2], n[0], n[1], n[2], d[0], d[1], d[2]};
+            F out[kOutputs];
+            evalNetwork<V>(net, in, out);
+            toRadiance<V>(net, out);
+            store3<V, Stride>(ctx.io.out, first, out);
+            if (ctx.io.flags)
+                for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+            continue;
+        }
+        // Located, but in several voxels: record each point for the grouped pass.
+        alignas(64) int32_t voxels[W];
+        V::storei(voxels, voxel);
+        int32_t networks[W];
+        bool occupied = true;
+        for (int l = 0; l < W; ++l) occupied &= (networks[l] = g.dense[voxels[l]]) >= 0;
+        if (!occupied) {
+            def.blocks[def.blockCount++] = uint32_t(b);
+            continue;
+        }
+        alignas(64) float lx[W], ly[W], lz[W];
+        V::store(lx, local[0]);
+        V::store(ly, local[1]);
+        V::store(lz, local[2]);
+        for (int l = 0; l < W; ++l) {
+            size_t e = def.count++;
+            def.index[e] = uint32_t(first + size_t(l));
+            def.network[e] = networks[l];
+            def.local[3 * e] = lx[l];
+            def.local[3 * e + 1] = ly[l];
+            def.local[3 * e + 2] = lz[l];
+            if (ctx.io.flags) ctx.io.flags[first + size_t(l)] = 0;
+        }
+    }
+}
+
+// The constant tables of deinterleave3 / interleave3 for W lanes. Element e of the three interleaved
+// vectors (x0 y0 z0 x1 ...) is component e % 3 of point e / 3; it sits in vector e / W, lane e % W.
+template <int W>
+struct Interleave {
+    // Lanes of vector s that hold component c.
+    static constexpr unsigned laneMask(int s, int c) {
+        unsigned m = 0;
+        for (int l = 0; l < W; ++l)
+            if ((s * W + l) % 3 == c) m |= 1u << l;
+        return m;
+    }
+    template <int S, int C>
+    static constexpr unsigned kMask = laneMask(S, C);
+    // After blending the three vectors by laneMask (lane l from the vector holding component c there),
+    // point k's component c is at lane (3k + c) % W: gather[c][k]. scatter is its inverse.
+    struct Tables {
+        int32_t gather[3][W];
+        int32_t scatter[3][W];
+    };
+    static constexpr Tables tables() {
+        Tables t{};
+        for (int c = 0; c < 3; ++c)
+            for (int k = 0; k < W; ++k) {
+                t.gather[c][k] = (3 * k + c) % W;
+                t.scatter[c][(3 * k + c) % W] = k;
+            }
+        return t;
+    }
+};
