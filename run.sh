@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # nrad quick start: installs what is missing (Debian 12, as root), configures, builds, and runs.
-#   ./run.sh demo   render the bundled Cornell box reference and say where the image is
+#   ./run.sh demo   bake the bundled Cornell box and validate the asset against a path-traced reference:
+#                   prints bake time, asset bytes, relMSE of the asset and of the SH-probe baseline, the
+#                   equal-error time ratio, and the path of report.html (the reference is cached, so a
+#                   second run only re-bakes and re-renders the fast parts)
 #   ./run.sh test   build everything and run the whole test suite (CTest)
 #   ./run.sh build  only install, configure and build
 # Environment: BUILD_DIR (default build), NRAD_WERROR=ON to treat warnings as errors (CI).
@@ -10,7 +13,7 @@ cd "$(dirname "$0")"
 PACKAGES=(cmake ninja-build g++ pkg-config python3
   libembree-dev libtinygltf-dev libdraco-dev libopenexr-dev libglm-dev nlohmann-json3-dev
   libtbb-dev libcli11-dev libstb-dev libgtest-dev libgmock-dev libbenchmark-dev
-  clang libclang-rt-14-dev)
+  clang libclang-rt-14-dev chromium)
 
 install_packages() {
   local missing=()
@@ -39,9 +42,9 @@ case "${1:-}" in
   demo)
     build
     mkdir -p out
-    "$BUILD_DIR/baker/nrad" render scenes/cornell-box/cornell-box.gltf -o out/cornell-box.exr -o out/cornell-box.png \
-      --spp 256 --width 512
-    echo "reference images: out/cornell-box.exr (linear float) and out/cornell-box.png (sRGB)"
+    "$BUILD_DIR/baker/nrad" bake scenes/cornell-box/cornell-box.gltf -o out/cornell-box.nrad --stats out/cornell-box-bake.json -q
+    "$BUILD_DIR/baker/nrad" validate scenes/cornell-box/cornell-box.gltf out/cornell-box.nrad -o out/cornell-box-report \
+      --bake-stats out/cornell-box-bake.json -q
     ;;
   test)
     build

@@ -22,9 +22,15 @@ enum ExitCode : int {
 // summary and the importer's warnings on stderr.
 int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene);
 
+// The camera a command renders from: scene camera `index`, or (index < 0) the first, or a camera framing
+// the bounds if the scene has none. Prints "nrad COMMAND: --camera N: ..." and returns kExitUsage for an
+// index the scene does not have.
+int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera);
+
 // Each registers its subcommand; the returned callback runs it and returns an exit code.
 std::function<int()> addRenderCommand(CLI::App& app);
 std::function<int()> addBakeCommand(CLI::App& app);
 std::function<int()> addInfoCommand(CLI::App& app);
+std::function<int()> addValidateCommand(CLI::App& app);
 
 }  // namespace nrad

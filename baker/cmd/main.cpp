@@ -7,12 +7,13 @@
 #include "baker/cmd/commands.h"
 
 int main(int argc, char** argv) {
-    CLI::App app{"nrad: bake glTF scenes into neural radiance assets, and render them"};
+    CLI::App app{"nrad: bake glTF scenes into neural radiance assets, render them, and validate them"};
     app.require_subcommand(1);
     app.set_version_flag("--version", "nrad 0.1.0");
     std::map<std::string, std::function<int()>> commands = {{"bake", nrad::addBakeCommand(app)},
                                                             {"render", nrad::addRenderCommand(app)},
-                                                            {"info", nrad::addInfoCommand(app)}};
+                                                            {"info", nrad::addInfoCommand(app)},
+                                                            {"validate", nrad::addValidateCommand(app)}};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

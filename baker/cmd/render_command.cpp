@@ -86,19 +86,7 @@ int runRender(const RenderOptions& o) {
     Scene scene;
     if (int code = loadSceneForCommand("render", o.scene, o.quiet, scene)) return code;
     Camera camera;
-    if (o.camera >= 0) {
-        if (size_t(o.camera) >= scene.cameras.size()) {
-            std::fprintf(stderr, "nrad render: --camera %d: %s has %zu camera(s)\n", o.camera, o.scene.c_str(),
-                         scene.cameras.size());
-            return kExitUsage;
-        }
-        camera = scene.cameras[size_t(o.camera)];
-    } else if (!scene.cameras.empty()) {
-        camera = scene.cameras.front();
-    } else {
-        camera = frameBounds(scene.bounds);
-        if (!o.quiet) std::fprintf(stderr, "camera: the scene has none; framing its bounds from +Z\n");
-    }
+    if (int code = chooseCameraForCommand("render", scene, o.camera, o.quiet, camera)) return code;
     RenderSettings settings;
     settings.spp = o.spp;
     settings.maxDepth = o.maxDepth;

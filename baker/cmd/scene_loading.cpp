@@ -35,4 +35,21 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
     return kExitOk;
 }
 
+int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera) {
+    if (index >= 0) {
+        if (size_t(index) >= scene.cameras.size()) {
+            std::fprintf(stderr, "nrad %s: --camera %d: %s has %zu camera(s)\n", command, index, scene.sourcePath.c_str(),
+                         scene.cameras.size());
+            return kExitUsage;
+        }
+        camera = scene.cameras[size_t(index)];
+    } else if (!scene.cameras.empty()) {
+        camera = scene.cameras.front();
+    } else {
+        camera = frameBounds(scene.bounds);
+        if (!quiet) std::fprintf(stderr, "camera: the scene has none; framing its bounds from +Z\n");
+    }
+    return kExitOk;
+}
+
 }  // namespace nrad

@@ -16,6 +16,15 @@ namespace nrad {
 NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
                               const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
                               const std::function<void(double)>& progress) {
+    FirstHitEvaluator evaluate = [asset](size_t n, const float* p, const float* nrm, const float* d, float* rgb, uint8_t* flags) {
+        return nradEvaluateBatch(asset, n, p, nrm, d, rgb, flags);
+    };
+    return renderFirstHit(scene, accel, evaluate, camera, settings, image, stats, progress);
+}
+
+NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, const Camera& camera,
+                          const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
+                          const std::function<void(double)>& progress) {
     using clock = std::chrono::steady_clock;
     auto start = clock::now();
     image = Image(settings.width, settings.height);
@@ -64,7 +73,7 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
             size_t n = pixelOf.size();
             rgb.assign(3 * n, 0.0f);
             flags.assign(n, 0);
-            NradStatus st = nradEvaluateBatch(asset, n, pos.data(), nrm.data(), dir.data(), rgb.data(), flags.data());
+            NradStatus st = n > 0 ? evaluate(n, pos.data(), nrm.data(), dir.data(), rgb.data(), flags.data()) : NRAD_OK;
             auto t2 = clock::now();
             if (st != NRAD_OK) failure = st;
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));

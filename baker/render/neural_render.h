@@ -20,6 +20,19 @@ struct NeuralRenderStats {
     uint64_t outsideGrid = 0, emptyVoxel = 0, invalidInput = 0;  // per-point flags
 };
 
+// Radiance of a batch of first hits: positions, shading normals and directions towards the camera
+// (interleaved xyz, `count` each) -> rgb (interleaved) and a per-point flag (NRAD_POINT_*). Called from
+// worker threads concurrently. Returns NRAD_OK or the failure to report.
+using FirstHitEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals,
+                                                   const float* directions, float* rgb, uint8_t* flags)>;
+
+// Renders with primary visibility only, radiance at the first hit from `evaluate`: tile by tile, each
+// tile's hits in one batch. The same sample positions as renderThroughAsset, so any two evaluators render
+// the same hits.
+NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, const Camera& camera,
+                          const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
+                          const std::function<void(double)>& progress = {});
+
 // Fails with the runtime's status if evaluation fails.
 NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
                               const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,

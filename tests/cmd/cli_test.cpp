@@ -232,5 +232,94 @@ TEST(CliRender, ThroughAnAssetCloseToThePathTracedImage) {
     EXPECT_NE(r.output.find("missing.nrad: cannot open file"), std::string::npos) << r.output;
 }
 
+// Chromium's DOM after load, or "" if it cannot run.
+std::string chromiumDom(const std::string& html) {
+    for (const char* exe : {"chromium", "chromium-browser"}) {
+        std::string cmd = std::string(exe) + " --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --allow-file-access-from-files "
+                          "--virtual-time-budget=10000 --dump-dom 'file://" + html + "' 2>/dev/null";
+        FILE* pipe = popen(cmd.c_str(), "r");
+        if (!pipe) continue;
+        std::string out;
+        char buf[4096];
+        size_t n;
+        while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+        if (pclose(pipe) == 0 && !out.empty()) return out;
+    }
+    return "";
+}
+
+int attribute(const std::string& dom, const std::string& name) {
+    size_t at = dom.find(name + "=\"");
+    return at == std::string::npos ? -1 : std::atoi(dom.c_str() + at + name.size() + 2);
+}
+
+TEST(CliValidate, ReportWithCachedReferenceThatRendersInChromium) {
+    std::string dir = test::temporaryDirectory();
+    std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    ASSERT_EQ(run("bake " + scene + " -o '" + dir + "/a.nrad' --points 2000 --paths 32 --epochs 200 --stats '" + dir + "/s.json' -q").exitCode, 0);
+    const std::string common = " --width 40 --reference-spp 32 --curve-max-spp 8 --cache-dir '" + dir + "/cache' -q";
+    RunResult r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/report' --bake-stats '" + dir + "/s.json'" + common);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("neural relMSE"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("path tracer at equal error"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("report.html"), std::string::npos) << r.output;
+    std::ifstream f(dir + "/report/report.json");
+    nlohmann::json j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["reference"]["source"], "rendered");
+    ASSERT_EQ(j["path_tracer_convergence"].size(), 4u);  // 1, 2, 4, 8 spp
+    // More samples, less error: the curve falls.
+    EXPECT_LT(j["path_tracer_convergence"][3]["metrics"]["relmse"].get<double>(),
+              j["path_tracer_convergence"][0]["metrics"]["relmse"].get<double>());
+    double neural = j["neural"]["metrics"]["relmse"].get<double>();
+    EXPECT_TRUE(std::isfinite(neural) && neural > 0.0);
+    EXPECT_GT(j["neural"]["equal_error_path_tracer_seconds"].get<double>(), 0.0);
+    EXPECT_GT(j["neural"]["bytes"].get<size_t>(), j["baseline"]["bytes"].get<size_t>() - 1);  // baseline fits in the same bytes
+    EXPECT_TRUE(j["comparison"]["better_overall"] == "neural" || j["comparison"]["better_overall"] == "sh-probes");
+    EXPECT_GT(j["bake"]["training_curve"].size(), 1u);
+    for (const char* file : {"report.html", "reference.exr", "reference.png", "neural.exr", "neural.png", "neural-sqdiff.png",
+                             "neural-relerr.png", "sh-probes.png", "winner.png", "error-vs-time.svg", "bake-training.svg",
+                             "convergence.csv"})
+        EXPECT_TRUE(fs::exists(dir + "/report/" + file)) << file;
+    // The second validation takes the reference from the cache.
+    r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/report2' --no-baseline" + common);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::ifstream f2(dir + "/report2/report.json");
+    nlohmann::json j2 = nlohmann::json::parse(f2);
+    EXPECT_EQ(j2["reference"]["source"], "cache");
+    EXPECT_FALSE(j2.contains("baseline"));
+    EXPECT_EQ(readExr(dir + "/report/reference.exr").pixels, readExr(dir + "/report2/reference.exr").pixels);
+    // Headless Chromium opens the report and every image and plot in it loads.
+    std::string dom = chromiumDom(dir + "/report/report.html");
+    ASSERT_FALSE(dom.empty()) << "chromium could not run (./run.sh installs the Debian package `chromium`)";
+    int total = attribute(dom, "data-images-total"), loaded = attribute(dom, "data-images-loaded");
+    EXPECT_GE(total, 10) << dom.substr(0, 2000);
+    EXPECT_EQ(loaded, total);
+    EXPECT_NE(dom.find("error-vs-time.svg"), std::string::npos);
+}
+
+TEST(CliValidate, BadInputsExitWithTheirCodes) {
+    std::string dir = test::temporaryDirectory();
+    std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    ASSERT_EQ(run("bake " + scene + " -o '" + dir + "/a.nrad' --points 500 --paths 4 --epochs 10 -q").exitCode, 0);
+    RunResult r = run("validate " + scene + " '" + dir + "/missing.nrad' -o '" + dir + "/r' -q");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("missing.nrad: cannot open file"), std::string::npos) << r.output;
+    std::ofstream(dir + "/bad.json") << "[1, 2";
+    r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/r' --bake-stats '" + dir + "/bad.json' -q");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("bad.json"), std::string::npos) << r.output;
+    // A reference of the wrong size.
+    Image small(4, 4);
+    writeExr(dir + "/ref.exr", small);
+    r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/r' --width 8 --reference '" + dir + "/ref.exr' -q");
+    EXPECT_EQ(r.exitCode, 3);
+    EXPECT_NE(r.output.find("ref.exr: the reference is 4x4"), std::string::npos) << r.output;
+    // The report folder cannot be created (a file is in the way).
+    std::ofstream(dir + "/file") << "x";
+    r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/file/r' --width 8 --reference-spp 2 --curve-max-spp 1 --no-cache --no-baseline -q");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/r"));
+}
+
 }  // namespace
 }  // namespace nrad

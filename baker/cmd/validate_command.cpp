@@ -1,0 +1,139 @@
+// `nrad validate`: the asset against a path-traced reference, error against run time, an HTML report.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <nrad/nrad.hpp>
+
+#include "baker/cmd/commands.h"
+#include "baker/util/atomic_file.h"
+#include "baker/util/threads.h"
+#include "baker/validate/report.h"
+#include "baker/validate/validate.h"
+
+namespace nrad {
+
+namespace {
+
+struct ValidateOptions {
+    std::string scene, asset, output, bakeStats, cacheDir, reference;
+    int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 6, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
+    uint32_t seed = 0;
+    float exposure = 0.0f;
+    bool noCache = false, noBaseline = false, quiet = false;
+};
+
+// $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report.
+std::string defaultCacheDir(const std::string& output) {
+    if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return (std::filesystem::path(x) / "nrad").string();
+    if (const char* h = std::getenv("HOME"); h && *h) return (std::filesystem::path(h) / ".cache" / "nrad").string();
+    return (std::filesystem::path(output) / "cache").string();
+}
+
+int runValidate(const ValidateOptions& o) {
+    nlohmann::json bakeStats;
+    if (!o.bakeStats.empty()) {
+        std::ifstream f(o.bakeStats);
+        if (f) bakeStats = nlohmann::json::parse(f, nullptr, false);
+        if (!f || bakeStats.is_discarded() || !bakeStats.is_object()) {
+            std::fprintf(stderr, "nrad validate: %s: %s\n", o.bakeStats.c_str(),
+                         !f ? "cannot open file" : "not the JSON object `nrad bake --stats` writes");
+            return kExitBadInput;
+        }
+    }
+    ThreadScope threads(o.threads);
+    Scene scene;
+    if (int code = loadSceneForCommand("validate", o.scene, o.quiet, scene)) return code;
+    nrad::Asset asset;
+    std::string message;
+    if (asset.loadFromFile(o.asset.c_str(), &message) != NRAD_OK) {
+        std::fprintf(stderr, "nrad validate: %s\n", message.c_str());
+        return kExitBadInput;
+    }
+    ValidateSettings s;
+    if (int code = chooseCameraForCommand("validate", scene, o.camera, o.quiet, s.camera)) return code;
+    s.width = o.width;
+    s.height = o.height;
+    s.referenceSpp = o.referenceSpp;
+    s.maxDepth = o.maxDepth;
+    s.neuralSpp = o.neuralSpp;
+    s.curveMaxSpp = o.curveMaxSpp;
+    s.seed = o.seed;
+    s.exposure = o.exposure;
+    s.baseline = !o.noBaseline;
+    s.referenceImage = o.reference;
+    s.cacheDir = o.noCache ? std::string() : (o.cacheDir.empty() ? defaultCacheDir(o.output) : o.cacheDir);
+    ValidationResult r;
+    try {
+        r = runValidation(scene, o.scene, asset.get(), o.asset, s, [&](const std::string& line) {
+            if (!o.quiet) std::fprintf(stderr, "%s\n", line.c_str());
+        });
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitIo;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitBadInput;
+    }
+    std::string html;
+    try {
+        html = writeReport(r, bakeStats, o.output);
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitIo;
+    }
+    // The headline numbers.
+    std::printf("validated %s against %s (%dx%d): neural relMSE %.4g, RMSE %.4g, PSNR %.2f dB, render %.3g s (evaluation %.3g s)\n",
+                o.asset.c_str(), o.scene.c_str(), r.width, r.height, r.neural.metrics.relMse, r.neural.metrics.rmse,
+                r.neural.metrics.psnr, r.neural.seconds, r.neural.evaluationSeconds);
+    if (r.baseline)
+        std::printf("  SH probe baseline (%zu bytes, neural %zu bytes): relMSE %.4g -> %s is better overall\n", r.baseline->bytes,
+                    r.neural.bytes, r.baseline->metrics.relMse,
+                    r.neural.metrics.relMse <= r.baseline->metrics.relMse ? "neural" : "the SH baseline");
+    std::printf("  path tracer at equal error: %.3g s%s = %.3gx the network evaluation, %.3gx the whole neural render\n",
+                r.neural.equalErrorSeconds, r.neural.equalErrorExtrapolated ? " (extrapolated)" : "", r.neural.speedupOverEvaluation,
+                r.neural.speedupOverRender);
+    if (bakeStats.is_object() && bakeStats.contains("seconds") && bakeStats["seconds"].is_object()) {
+        double total = 0.0;
+        for (auto& [k, v] : bakeStats["seconds"].items())
+            if (v.is_number()) total += v.get<double>();
+        std::printf("  bake: %.2f s, %s bytes\n", total, bakeStats.value("asset_bytes", nlohmann::json("?")).dump().c_str());
+    }
+    std::printf("  reference: %s%s\n  report: %s\n", r.referenceSource.c_str(),
+                r.referenceSeconds > 0 ? (" (" + std::to_string(r.referenceSeconds) + " s)").c_str() : "", html.c_str());
+    return kExitOk;
+}
+
+}  // namespace
+
+std::function<int()> addValidateCommand(CLI::App& app) {
+    auto o = std::make_shared<ValidateOptions>();
+    CLI::App* cmd = app.add_subcommand("validate", "Compare an asset with a path-traced reference: error against run time, HTML report");
+    cmd->add_option("scene", o->scene, "glTF 2.0 scene the asset was baked from")->required();
+    cmd->add_option("asset", o->asset, "Neural radiance asset (.nrad)")->required();
+    cmd->add_option("-o,--output", o->output, "Report folder (report.html, report.json, images, plots)")->required();
+    cmd->add_option("--bake-stats", o->bakeStats, "The bake's `nrad bake --stats` JSON: its training curve and phase times join the report");
+    cmd->add_option("--width", o->width, "Image width (default 512)")->check(CLI::Range(1, 1 << 14));
+    cmd->add_option("--height", o->height, "Image height (default from the width and the camera aspect)")->check(CLI::Range(1, 1 << 14));
+    cmd->add_option("--camera", o->camera, "Camera index (default: the first)")->check(CLI::NonNegativeNumber);
+    cmd->add_option("--reference-spp", o->referenceSpp, "Paths per pixel of the reference (default 512)")->check(CLI::Range(1, 1 << 24));
+    cmd->add_option("--max-depth", o->maxDepth, "Path length of reference and convergence curve; 0 = unbounded (default 6)")
+        ->check(CLI::Range(0, 1 << 20));
+    cmd->add_option("--spp", o->neuralSpp, "Primary samples per pixel through the asset (default 4)")->check(CLI::Range(1, 1 << 16));
+    cmd->add_option("--curve-max-spp", o->curveMaxSpp, "The path tracer's convergence curve goes 1, 2, 4, ... up to this (default 64)")
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--seed", o->seed, "Seed of the reference (the curve uses seed + 1)");
+    cmd->add_option("--reference", o->reference, "Use this EXR as the reference instead of rendering one");
+    cmd->add_option("--cache-dir", o->cacheDir, "Reference cache (default $XDG_CACHE_HOME/nrad or ~/.cache/nrad)");
+    cmd->add_flag("--no-cache", o->noCache, "Neither read nor write the reference cache");
+    cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
+    cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(CLI::Range(-64.0f, 64.0f));
+    cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
+    cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
+    return [o]() { return runValidate(*o); };
+}
+
+}  // namespace nrad

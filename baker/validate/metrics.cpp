@@ -1,0 +1,127 @@
+// Error metrics and error images.
+#include "baker/validate/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace nrad {
+
+namespace {
+
+void requireSameSize(const Image& a, const Image& b) {
+    if (a.width != b.width || a.height != b.height)
+        throw std::invalid_argument("images differ in size: " + std::to_string(a.width) + "x" + std::to_string(a.height) +
+                                    " and " + std::to_string(b.width) + "x" + std::to_string(b.height));
+}
+
+double tonemap(double v, double gain) {
+    v = std::isfinite(v) ? std::clamp(v * gain, 0.0, 1.0) : 0.0;
+    return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
+}
+
+double srgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); }
+
+double luminance(const glm::vec3& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
+
+}  // namespace
+
+ImageMetrics compareImages(const Image& image, const Image& reference, float exposure) {
+    requireSameSize(image, reference);
+    const double gain = std::exp2(double(exposure));
+    double se = 0.0, rel = 0.0, tse = 0.0, mre = 0.0;
+    for (size_t i = 0; i < image.pixels.size(); ++i)
+        for (int c = 0; c < 3; ++c) {
+            double ref = reference.pixels[i][c], x = image.pixels[i][c];
+            if (!std::isfinite(x)) x = 0.0;
+            double d = x - ref;
+            se += d * d;
+            rel += d * d / (ref * ref + 0.01);
+            mre += std::abs(d) / (std::abs(ref) + 0.01);
+            double t = tonemap(x, gain) - tonemap(ref, gain);
+            tse += t * t;
+        }
+    const double count = double(image.pixels.size()) * 3.0;
+    ImageMetrics m;
+    if (count == 0.0) return m;
+    m.rmse = std::sqrt(se / count);
+    m.relMse = rel / count;
+    m.meanRelativeError = mre / count;
+    m.psnr = tse > 0.0 ? 10.0 * std::log10(count / tse) : std::numeric_limits<double>::infinity();
+    return m;
+}
+
+Image squaredDifferenceImage(const Image& image, const Image& reference, float scale) {
+    requireSameSize(image, reference);
+    Image out(image.width, image.height);
+    for (size_t i = 0; i < image.pixels.size(); ++i) {
+        glm::vec3 d = image.pixels[i] - reference.pixels[i];
+        out.pixels[i] = glm::vec3(scale) * d * d;
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(out.pixels[i][c])) out.pixels[i][c] = 1.0f;
+    }
+    return out;
+}
+
+void errorRamp(float t, float srgb[3]) {
+    // Dark blue, blue, cyan, green, yellow, red, dark red at t = 0, 1/6, ..., 1.
+    static const float stops[7][3] = {{0.05f, 0.03f, 0.35f}, {0.10f, 0.35f, 0.90f}, {0.10f, 0.80f, 0.90f}, {0.20f, 0.80f, 0.20f},
+                                      {0.95f, 0.90f, 0.15f}, {0.95f, 0.35f, 0.10f}, {0.50f, 0.02f, 0.02f}};
+    t = std::isfinite(t) ? std::clamp(t, 0.0f, 1.0f) * 6.0f : 6.0f;
+    int i = std::min(int(t), 5);
+    float f = t - float(i);
+    for (int c = 0; c < 3; ++c) srgb[c] = stops[i][c] * (1.0f - f) + stops[i + 1][c] * f;
+}
+
+Image relativeErrorMap(const Image& image, const Image& reference) {
+    requireSameSize(image, reference);
+    Image out(image.width, image.height);
+    for (size_t i = 0; i < image.pixels.size(); ++i) {
+        double e = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            double x = image.pixels[i][c], ref = reference.pixels[i][c];
+            e += std::isfinite(x) ? std::abs(x - ref) / (std::abs(ref) + 0.01) : 1e9;
+        }
+        e /= 3.0;
+        // log10(e) from -3 to 0 -> 0..1.
+        float t = float((std::log10(std::max(e, 1e-6)) + 3.0) / 3.0);
+        float srgb[3];
+        errorRamp(t, srgb);
+        for (int c = 0; c < 3; ++c) out.pixels[i][c] = float(srgbToLinear(srgb[c]));
+    }
+    return out;
+}
+
+std::vector<DecadeError> relMseByDecade(const Image& image, const Image& reference) {
+    requireSameSize(image, reference);
+    std::vector<DecadeError> decades;
+    for (int e = -6; e < 8; ++e) decades.push_back({std::pow(10.0, e), std::pow(10.0, e + 1), 0, 0.0, 0.0});
+    std::vector<size_t> positive(decades.size(), 0);
+    for (size_t i = 0; i < image.pixels.size(); ++i) {
+        double lum = luminance(reference.pixels[i]);
+        for (DecadeError& d : decades)
+            if (lum >= d.lo && lum < d.hi) {
+                ++d.pixels;
+                for (int c = 0; c < 3; ++c) {
+                    double ref = reference.pixels[i][c], x = image.pixels[i][c];
+                    double diff = (std::isfinite(x) ? x : 0.0) - ref;
+                    d.relMse += diff * diff / (ref * ref + 0.01);
+                    if (ref > 0.0) {
+                        d.relativeRms += diff * diff / (ref * ref);
+                        ++positive[size_t(&d - decades.data())];
+                    }
+                }
+            }
+    }
+    std::vector<DecadeError> out;
+    for (DecadeError& d : decades)
+        if (d.pixels > 0) {
+            d.relMse /= 3.0 * double(d.pixels);
+            size_t n = positive[size_t(&d - decades.data())];
+            d.relativeRms = n > 0 ? std::sqrt(d.relativeRms / double(n)) : 0.0;
+            out.push_back(d);
+        }
+    return out;
+}
+
+}  // namespace nrad

@@ -1,0 +1,397 @@
+// Report files: JSON, CSV, SVG plots, HTML, images.
+#include "baker/validate/report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "baker/util/atomic_file.h"
+
+namespace nrad {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string fmt(const char* f, double v) {
+    char b[64];
+    std::snprintf(b, sizeof b, f, v);
+    return b;
+}
+
+std::string escape(const std::string& s) {
+    std::string o;
+    for (char c : s) {
+        if (c == '&') o += "&amp;";
+        else if (c == '<') o += "&lt;";
+        else if (c == '>') o += "&gt;";
+        else if (c == '"') o += "&quot;";
+        else o += c;
+    }
+    return o;
+}
+
+// JSON numbers must be finite: inf (identical images' PSNR) becomes null.
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json metricsJson(const ImageMetrics& m) {
+    return {{"rmse", num(m.rmse)}, {"relmse", num(m.relMse)}, {"psnr_db", num(m.psnr)}, {"mean_relative_error", num(m.meanRelativeError)}};
+}
+
+nlohmann::json methodJson(const MethodResult& m) {
+    nlohmann::json decades = nlohmann::json::array();
+    for (const DecadeError& d : m.byDecade)
+        decades.push_back({{"luminance_from", d.lo}, {"luminance_to", d.hi}, {"pixels", d.pixels}, {"relmse", num(d.relMse)},
+                           {"relative_rms", num(d.relativeRms)}});
+    return {{"name", m.name},
+            {"metrics", metricsJson(m.metrics)},
+            {"seconds", m.seconds},
+            {"visibility_seconds", m.visibilitySeconds},
+            {"evaluation_seconds", m.evaluationSeconds},
+            {"evaluations", m.evaluations},
+            {"outside_grid", m.outsideGrid},
+            {"empty_voxel", m.emptyVoxel},
+            {"bytes", m.bytes},
+            {"equal_error_path_tracer_seconds", num(m.equalErrorSeconds)},
+            {"equal_error_extrapolated", m.equalErrorExtrapolated},
+            {"equal_error_time_ratio_evaluation", num(m.speedupOverEvaluation)},
+            {"equal_error_time_ratio_render", num(m.speedupOverRender)},
+            {"by_luminance_decade", decades}};
+}
+
+// Per-pixel relative error (mean over channels) of an image against the reference.
+double pixelError(const Image& img, const Image& ref, size_t i) {
+    double e = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        double d = double(img.pixels[i][c]) - double(ref.pixels[i][c]);
+        e += d * d / (double(ref.pixels[i][c]) * double(ref.pixels[i][c]) + 0.01);
+    }
+    return e / 3.0;
+}
+
+nlohmann::json comparisonJson(const ValidationResult& r) {
+    if (!r.baseline) return nullptr;
+    const MethodResult &n = r.neural, &b = *r.baseline;
+    size_t neuralBetter = 0, total = r.reference.pixels.size();
+    for (size_t i = 0; i < total; ++i) neuralBetter += pixelError(n.image, r.reference, i) < pixelError(b.image, r.reference, i);
+    nlohmann::json decades = nlohmann::json::array();
+    for (const DecadeError& d : n.byDecade)
+        for (const DecadeError& e : b.byDecade)
+            if (d.lo == e.lo)
+                decades.push_back({{"luminance_from", d.lo}, {"luminance_to", d.hi}, {"pixels", d.pixels}, {"neural_relmse", num(d.relMse)},
+                                   {"baseline_relmse", num(e.relMse)}, {"better", d.relMse <= e.relMse ? "neural" : "sh-probes"}});
+    return {{"better_overall", n.metrics.relMse <= b.metrics.relMse ? "neural" : "sh-probes"},
+            {"relmse_ratio_baseline_over_neural", num(n.metrics.relMse > 0 ? b.metrics.relMse / n.metrics.relMse : 0.0)},
+            {"pixels_where_neural_is_better", total ? double(neuralBetter) / double(total) : 0.0},
+            {"by_luminance_decade", decades}};
+}
+
+void writeText(const fs::path& p, const std::string& text) { writeTextAtomically(p.string(), text); }
+
+// A map of which method is closer to the reference per pixel: green neural, orange baseline, grey where
+// both are within 1e-4 relMSE of each other.
+Image winnerMap(const ValidationResult& r) {
+    Image out(r.width, r.height);
+    for (size_t i = 0; i < out.pixels.size(); ++i) {
+        double en = pixelError(r.neural.image, r.reference, i), eb = pixelError(r.baseline->image, r.reference, i);
+        out.pixels[i] = std::abs(en - eb) < 1e-4 ? glm::vec3(0.2f) : en < eb ? glm::vec3(0.05f, 0.5f, 0.1f) : glm::vec3(0.9f, 0.35f, 0.02f);
+    }
+    return out;
+}
+
+std::string headlineSentence(const ValidationResult& r) {
+    std::ostringstream s;
+    s << "The neural asset (" << r.neural.bytes << " bytes of weights) renders with relMSE " << fmt("%.4g", r.neural.metrics.relMse)
+      << "; the path tracer needs " << fmt("%.3g", r.neural.equalErrorSeconds) << " s"
+      << (r.neural.equalErrorExtrapolated ? " (extrapolated beyond its measured curve)" : "") << " to reach that error, "
+      << fmt("%.3g", r.neural.speedupOverEvaluation) << "x the network evaluation time and "
+      << fmt("%.3g", r.neural.speedupOverRender) << "x the whole neural render (visibility included).";
+    if (r.baseline) {
+        const MethodResult& b = *r.baseline;
+        bool neuralWins = r.neural.metrics.relMse <= b.metrics.relMse;
+        s << " At " << b.bytes << " bytes, L2 SH probes reach relMSE " << fmt("%.4g", b.metrics.relMse) << ": the "
+          << (neuralWins ? "neural asset" : "SH probe baseline") << " is better overall ("
+          << fmt("%.3g", neuralWins ? b.metrics.relMse / std::max(r.neural.metrics.relMse, 1e-300)
+                                    : r.neural.metrics.relMse / std::max(b.metrics.relMse, 1e-300))
+          << "x lower relMSE).";
+    }
+    return s.str();
+}
+
+}  // namespace
+
+std::string svgLogLogPlot(const std::string& title, const std::string& xLabel, const std::string& yLabel,
+                          const std::vector<PlotSeries>& series, int width, int height) {
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (const PlotSeries& s : series)
+        for (auto [x, y] : s.points)
+            if (x > 0 && y > 0 && std::isfinite(x) && std::isfinite(y)) {
+                x0 = std::min(x0, std::log10(x)), x1 = std::max(x1, std::log10(x));
+                y0 = std::min(y0, std::log10(y)), y1 = std::max(y1, std::log10(y));
+            }
+    if (x0 > x1) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+    x0 = std::floor(x0), x1 = std::max(std::ceil(x1), x0 + 1), y0 = std::floor(y0), y1 = std::max(std::ceil(y1), y0 + 1);
+    const double left = 70, right = 20, top = 36, bottom = 52;
+    const double pw = width - left - right, ph = height - top - bottom;
+    auto X = [&](double x) { return left + (std::log10(x) - x0) / (x1 - x0) * pw; };
+    auto Y = [&](double y) { return top + (1.0 - (std::log10(y) - y0) / (y1 - y0)) * ph; };
+    std::ostringstream o;
+    o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << width << "\" height=\"" << height << "\" viewBox=\"0 0 " << width << ' '
+      << height << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+    o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+    o << "<text x=\"" << width / 2 << "\" y=\"20\" text-anchor=\"middle\" font-size=\"14\">" << escape(title) << "</text>\n";
+    for (int e = int(x0); e <= int(x1); ++e) {
+        double x = left + (e - x0) / (x1 - x0) * pw;
+        o << "<line x1=\"" << x << "\" y1=\"" << top << "\" x2=\"" << x << "\" y2=\"" << top + ph << "\" stroke=\"#ddd\"/>";
+        o << "<text x=\"" << x << "\" y=\"" << top + ph + 16 << "\" text-anchor=\"middle\">1e" << e << "</text>\n";
+    }
+    for (int e = int(y0); e <= int(y1); ++e) {
+        double y = top + (1.0 - (e - y0) / (y1 - y0)) * ph;
+        o << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << left + pw << "\" y2=\"" << y << "\" stroke=\"#ddd\"/>";
+        o << "<text x=\"" << left - 6 << "\" y=\"" << y + 4 << "\" text-anchor=\"end\">1e" << e << "</text>\n";
+    }
+    o << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << pw << "\" height=\"" << ph << "\" fill=\"none\" stroke=\"#333\"/>\n";
+    o << "<text x=\"" << left + pw / 2 << "\" y=\"" << height - 12 << "\" text-anchor=\"middle\">" << escape(xLabel) << "</text>\n";
+    o << "<text transform=\"translate(16," << top + ph / 2 << ") rotate(-90)\" text-anchor=\"middle\">" << escape(yLabel) << "</text>\n";
+    int legend = 0;
+    for (const PlotSeries& s : series) {
+        std::vector<std::pair<double, double>> pts;
+        for (auto [x, y] : s.points)
+            if (x > 0 && y > 0 && std::isfinite(x) && std::isfinite(y)) pts.emplace_back(X(x), Y(y));
+        if (s.line && pts.size() > 1) {
+            o << "<polyline fill=\"none\" stroke=\"" << s.colour << "\" stroke-width=\"2\" points=\"";
+            for (auto [x, y] : pts) o << x << ',' << y << ' ';
+            o << "\"/>\n";
+        }
+        for (auto [x, y] : pts) o << "<circle cx=\"" << x << "\" cy=\"" << y << "\" r=\"" << (s.line ? 3 : 6) << "\" fill=\"" << s.colour << "\"/>\n";
+        double ly = top + 14 + 16 * legend++;
+        o << "<circle cx=\"" << left + pw - 150 << "\" cy=\"" << ly - 4 << "\" r=\"5\" fill=\"" << s.colour << "\"/>";
+        o << "<text x=\"" << left + pw - 140 << "\" y=\"" << ly << "\">" << escape(s.name) << "</text>\n";
+    }
+    o << "</svg>\n";
+    return o.str();
+}
+
+std::vector<BakeCurvePoint> bakeTrainingCurve(const nlohmann::json& bakeStats) {
+    std::vector<BakeCurvePoint> out;
+    if (!bakeStats.is_object() || !bakeStats.contains("voxels") || !bakeStats["voxels"].is_array()) return out;
+    std::vector<std::vector<std::pair<double, double>>> curves;  // per voxel: (seconds, relMSE)
+    std::vector<double> times;
+    for (const auto& v : bakeStats["voxels"]) {
+        std::vector<std::pair<double, double>> c;
+        if (v.contains("curve_epoch_seconds_relmse") && v["curve_epoch_seconds_relmse"].is_array())
+            for (const auto& p : v["curve_epoch_seconds_relmse"])
+                if (p.is_array() && p.size() == 3 && p[1].is_number() && p[2].is_number()) {
+                    c.emplace_back(p[1].get<double>(), p[2].get<double>());
+                    times.push_back(p[1].get<double>());
+                }
+        if (!c.empty()) curves.push_back(std::move(c));
+    }
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
+    // At most 200 points, spread over the times.
+    std::vector<double> at;
+    for (size_t i = 0; i < times.size(); i += std::max<size_t>(1, times.size() / 200)) at.push_back(times[i]);
+    if (!times.empty() && at.back() != times.back()) at.push_back(times.back());
+    for (double t : at) {
+        std::vector<double> errs;
+        for (const auto& c : curves) {
+            double e = c.front().second;  // a voxel not started yet counts with its first error
+            for (auto [s, v] : c)
+                if (s <= t) e = v;
+            errs.push_back(e);
+        }
+        if (errs.empty()) continue;
+        double mean = 0.0;
+        for (double e : errs) mean += e;
+        std::sort(errs.begin(), errs.end());
+        double median = errs.size() % 2 ? errs[errs.size() / 2] : 0.5 * (errs[errs.size() / 2 - 1] + errs[errs.size() / 2]);
+        out.push_back({t, mean / double(errs.size()), median});
+    }
+    return out;
+}
+
+nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeStats) {
+    const ValidateSettings& s = r.settings;
+    nlohmann::json j;
+    j["scene"] = r.scenePath;
+    j["asset"] = r.assetPath;
+    j["image"] = {{"width", r.width}, {"height", r.height}};
+    j["settings"] = {{"reference_spp", s.referenceSpp}, {"max_depth", s.maxDepth}, {"neural_spp", s.neuralSpp},
+                     {"curve_max_spp", s.curveMaxSpp}, {"seed", s.seed}, {"exposure", s.exposure}};
+    j["reference"] = {{"source", r.referenceSource}, {"cache_file", r.referenceCacheFile}, {"seconds", r.referenceSeconds}};
+    nlohmann::json curve = nlohmann::json::array();
+    for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
+    j["path_tracer_convergence"] = curve;
+    j["neural"] = methodJson(r.neural);
+    if (r.baseline) {
+        j["baseline"] = methodJson(*r.baseline);
+        j["baseline"]["probes"] = {r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z};
+        j["baseline"]["training_samples"] = r.baselineTrainingSamples;
+        j["baseline"]["training_settings"] = r.baselineSamplesNote;
+        j["baseline"]["fit"] = {{"cg_iterations", r.baselineFit.iterations}, {"relative_residual", r.baselineFit.relativeResidual},
+                                {"train_relmse", r.baselineFit.trainRelMse}};
+        j["baseline"]["sampling_and_fit_seconds"] = r.baselineSeconds;
+        j["comparison"] = comparisonJson(r);
+    }
+    if (bakeStats.is_object()) {
+        nlohmann::json b;
+        b["seconds"] = bakeStats.value("seconds", nlohmann::json());
+        b["asset_bytes"] = bakeStats.value("asset_bytes", nlohmann::json());
+        b["held_out_relmse"] = bakeStats.value("held_out_relmse", nlohmann::json());
+        nlohmann::json c = nlohmann::json::array();
+        for (const BakeCurvePoint& p : bakeTrainingCurve(bakeStats))
+            c.push_back({{"seconds", p.seconds}, {"mean_relmse", num(p.meanRelMse)}, {"median_relmse", num(p.medianRelMse)}});
+        b["training_curve"] = c;
+        double total = 0.0;
+        if (b["seconds"].is_object())
+            for (auto& [k, v] : b["seconds"].items())
+                if (v.is_number()) total += v.get<double>();
+        b["total_seconds"] = total;
+        j["bake"] = b;
+    }
+    j["summary"] = headlineSentence(r);
+    return j;
+}
+
+std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeStats, const std::string& dirPath) {
+    const fs::path dir(dirPath);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw IoError(dirPath + ": cannot create the folder: " + ec.message());
+    const float exposure = r.settings.exposure;
+    auto both = [&](const std::string& stem, const Image& img) {
+        writeExr((dir / (stem + ".exr")).string(), img);
+        writePng((dir / (stem + ".png")).string(), img, exposure);
+    };
+    both("reference", r.reference);
+    both("neural", r.neural.image);
+    Image sq = squaredDifferenceImage(r.neural.image, r.reference);
+    writeExr((dir / "neural-sqdiff.exr").string(), sq);
+    writePng((dir / "neural-sqdiff.png").string(), sq);
+    writePng((dir / "neural-relerr.png").string(), relativeErrorMap(r.neural.image, r.reference));
+    if (r.baseline) {
+        both("sh-probes", r.baseline->image);
+        Image sb = squaredDifferenceImage(r.baseline->image, r.reference);
+        writeExr((dir / "sh-probes-sqdiff.exr").string(), sb);
+        writePng((dir / "sh-probes-sqdiff.png").string(), sb);
+        writePng((dir / "sh-probes-relerr.png").string(), relativeErrorMap(r.baseline->image, r.reference));
+        writePng((dir / "winner.png").string(), winnerMap(r));
+    }
+
+    nlohmann::json j = reportJson(r, bakeStats);
+    writeText(dir / "report.json", j.dump(1) + "\n");
+
+    std::ostringstream csv;
+    csv << "method,spp,seconds,relmse,rmse,psnr_db\n";
+    auto row = [&](const std::string& name, int spp, double sec, const ImageMetrics& m) {
+        csv << name << ',' << spp << ',' << fmt("%.6g", sec) << ',' << fmt("%.6g", m.relMse) << ',' << fmt("%.6g", m.rmse) << ','
+            << (std::isfinite(m.psnr) ? fmt("%.4f", m.psnr) : "inf") << '\n';
+    };
+    for (const CurvePoint& c : r.curve) row("path-tracer", c.spp, c.seconds, c.metrics);
+    row("neural", r.settings.neuralSpp, r.neural.seconds, r.neural.metrics);
+    if (r.baseline) row("sh-probes", r.settings.neuralSpp, r.baseline->seconds, r.baseline->metrics);
+    writeText(dir / "convergence.csv", csv.str());
+
+    std::vector<PlotSeries> series;
+    PlotSeries pt{"path tracer (1, 2, 4, ... spp)", "#1f5fbf", {}, true};
+    for (const CurvePoint& c : r.curve) pt.points.emplace_back(c.seconds, c.metrics.relMse);
+    series.push_back(pt);
+    series.push_back({"neural: whole render", "#2ca02c", {{r.neural.seconds, r.neural.metrics.relMse}}, false});
+    series.push_back({"neural: evaluation only", "#98df8a", {{r.neural.evaluationSeconds, r.neural.metrics.relMse}}, false});
+    if (r.baseline) series.push_back({"SH probes: whole render", "#ff7f0e", {{r.baseline->seconds, r.baseline->metrics.relMse}}, false});
+    writeText(dir / "error-vs-time.svg", svgLogLogPlot("Error against run time", "wall time (s)", "relMSE against the reference", series));
+    std::vector<BakeCurvePoint> bc = bakeTrainingCurve(bakeStats);
+    if (!bc.empty()) {
+        PlotSeries mean{"mean over voxels", "#d62728", {}, true}, median{"median over voxels", "#9467bd", {}, true};
+        for (const BakeCurvePoint& p : bc) {
+            mean.points.emplace_back(p.seconds, p.meanRelMse);
+            median.points.emplace_back(p.seconds, p.medianRelMse);
+        }
+        writeText(dir / "bake-training.svg",
+                  svgLogLogPlot("Bake: held-out error during training", "training time per voxel (s)", "held-out relMSE", {mean, median}));
+    }
+
+    // report.html: images, error maps and plots side by side; a script records how many images loaded.
+    std::ostringstream h;
+    auto figure = [&](const std::string& src, const std::string& caption) {
+        h << "<figure><img src=\"" << escape(src) << "\" alt=\"" << escape(caption) << "\"><figcaption>" << escape(caption)
+          << "</figcaption></figure>\n";
+    };
+    auto metricRow = [&](const std::string& name, const ImageMetrics& m, double sec, const std::string& extra) {
+        h << "<tr><td>" << escape(name) << "</td><td>" << fmt("%.4g", m.relMse) << "</td><td>" << fmt("%.4g", m.rmse) << "</td><td>"
+          << (std::isfinite(m.psnr) ? fmt("%.2f", m.psnr) : "inf") << "</td><td>" << fmt("%.3f", sec) << "</td><td>" << extra
+          << "</td></tr>\n";
+    };
+    h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>nrad validation: " << escape(r.scenePath)
+      << "</title>\n<style>body{font-family:sans-serif;margin:24px;max-width:1400px}figure{display:inline-block;margin:6px;"
+         "vertical-align:top}figure img{width:300px;image-rendering:pixelated;border:1px solid #ccc}figcaption{font-size:13px;"
+         "max-width:300px}table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
+         "td:first-child,th:first-child{text-align:left}.plots img{width:640px}p.summary{font-size:16px;max-width:1000px}</style>\n"
+         "</head><body>\n";
+    h << "<h1>nrad validation</h1>\n<p>Scene <code>" << escape(r.scenePath) << "</code>, asset <code>" << escape(r.assetPath) << "</code>, "
+      << r.width << "x" << r.height << " pixels. Reference: " << r.settings.referenceSpp << " paths per pixel, path length "
+      << (r.settings.maxDepth ? std::to_string(r.settings.maxDepth) : std::string("unbounded")) << " ("
+      << escape(r.referenceSource) << "). Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
+    h << "<p class=\"summary\">" << escape(headlineSentence(r)) << "</p>\n";
+    h << "<h2>Images</h2>\n<div>";
+    figure("reference.png", "reference (path traced)");
+    figure("neural.png", "through the neural asset");
+    if (r.baseline) figure("sh-probes.png", "L2 SH probes, same bytes");
+    h << "</div><div>";
+    figure("neural-sqdiff.png", "neural: squared difference x10");
+    figure("neural-relerr.png", "neural: relative error, log colour scale 1e-3 (blue) to 1 (red)");
+    if (r.baseline) {
+        figure("sh-probes-sqdiff.png", "SH probes: squared difference x10");
+        figure("sh-probes-relerr.png", "SH probes: relative error, same scale");
+        figure("winner.png", "closer to the reference: green neural, orange SH probes, grey tie");
+    }
+    h << "</div>\n<h2>Error against run time</h2>\n<table><tr><th>method</th><th>relMSE</th><th>RMSE</th><th>PSNR (dB)</th>"
+         "<th>wall time (s)</th><th>notes</th></tr>\n";
+    for (const CurvePoint& c : r.curve) metricRow("path tracer " + std::to_string(c.spp) + " spp", c.metrics, c.seconds, "");
+    auto methodNote = [&](const MethodResult& m) {
+        return fmt("%.3f", m.visibilitySeconds) + " s visibility + " + fmt("%.3f", m.evaluationSeconds) + " s evaluation; " +
+               std::to_string(m.bytes) + " bytes; path tracer at equal error " + fmt("%.3g", m.equalErrorSeconds) + " s" +
+               (m.equalErrorExtrapolated ? " (extrapolated)" : "") + " = " + fmt("%.3g", m.speedupOverEvaluation) +
+               "x the evaluation time, " + fmt("%.3g", m.speedupOverRender) + "x the render";
+    };
+    metricRow("neural", r.neural.metrics, r.neural.seconds, methodNote(r.neural));
+    if (r.baseline) metricRow("SH probes", r.baseline->metrics, r.baseline->seconds, methodNote(*r.baseline));
+    h << "</table>\n<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">";
+    if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
+    h << "</div>\n";
+    if (r.baseline) {
+        const nlohmann::json c = comparisonJson(r);
+        h << "<h2>Neural against SH probes</h2>\n<p>Better overall: <b>" << c["better_overall"].get<std::string>()
+          << "</b>. The neural image is closer to the reference in "
+          << fmt("%.1f", 100.0 * c["pixels_where_neural_is_better"].get<double>()) << "% of the pixels.</p>\n"
+          << "<table><tr><th>reference luminance</th><th>pixels</th><th>neural relMSE</th><th>SH relMSE</th><th>better</th></tr>\n";
+        for (const auto& d : c["by_luminance_decade"])
+            h << "<tr><td>" << fmt("%.0e", d["luminance_from"].get<double>()) << " to " << fmt("%.0e", d["luminance_to"].get<double>())
+              << "</td><td>" << d["pixels"].get<size_t>() << "</td><td>" << fmt("%.4g", d["neural_relmse"].is_number() ? d["neural_relmse"].get<double>() : 0.0)
+              << "</td><td>" << fmt("%.4g", d["baseline_relmse"].is_number() ? d["baseline_relmse"].get<double>() : 0.0) << "</td><td>"
+              << d["better"].get<std::string>() << "</td></tr>\n";
+        h << "</table>\n<p>Baseline: " << r.baselineProbes.x << "x" << r.baselineProbes.y << "x" << r.baselineProbes.z
+          << " probes fitted by least squares to " << r.baselineTrainingSamples << " training samples (" << escape(r.baselineSamplesNote)
+          << "); fit relMSE on those samples " << fmt("%.4g", r.baselineFit.trainRelMse) << ".</p>\n";
+    }
+    if (j.contains("bake")) {
+        h << "<h2>Bake</h2>\n<table><tr><th>phase</th><th>seconds</th></tr>\n";
+        if (j["bake"]["seconds"].is_object())
+            for (auto& [k, v] : j["bake"]["seconds"].items())
+                if (v.is_number()) h << "<tr><td>" << escape(k) << "</td><td>" << fmt("%.3f", v.get<double>()) << "</td></tr>\n";
+        h << "<tr><td>total</td><td>" << fmt("%.3f", j["bake"]["total_seconds"].get<double>()) << "</td></tr></table>\n";
+    }
+    h << "<p>All numbers: <a href=\"report.json\">report.json</a>, <a href=\"convergence.csv\">convergence.csv</a>.</p>\n"
+         "<script>window.addEventListener('load',function(){var im=document.images,ok=0;for(var i=0;i<im.length;++i)"
+         "if(im[i].complete&&im[i].naturalWidth>0)++ok;document.body.setAttribute('data-images-total',im.length);"
+         "document.body.setAttribute('data-images-loaded',ok);});</script>\n</body></html>\n";
+    fs::path html = dir / "report.html";
+    writeText(html, h.str());
+    return html.string();
+}
+
+}  // namespace nrad

@@ -1,0 +1,249 @@
+// The validation run: reference (cached), convergence curve, neural and baseline renders, scores.
+#include "baker/validate/validate.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+
+#include "baker/bake/baker.h"
+#include "baker/bake/training_samples.h"
+#include "baker/bake/voxel_grid.h"
+#include "baker/render/accel.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/neural_render.h"
+
+namespace nrad {
+
+namespace {
+
+namespace fs = std::filesystem;
+using clock_type = std::chrono::steady_clock;
+
+double since(clock_type::time_point t0) { return std::chrono::duration<double>(clock_type::now() - t0).count(); }
+
+void fnv(uint64_t& h, const void* data, size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < bytes; ++i) {
+        h ^= p[i];
+        h *= 0x100000001b3ull;
+    }
+}
+
+// Scores a first-hit render and splits its wall time by the thread-time shares.
+void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference, float exposure) {
+    m.metrics = compareImages(m.image, reference, exposure);
+    m.byDecade = relMseByDecade(m.image, reference);
+    m.seconds = st.seconds;
+    double threadTime = st.visibilitySeconds + st.evaluationSeconds;
+    double share = threadTime > 0.0 ? st.evaluationSeconds / threadTime : 0.0;
+    m.evaluationSeconds = st.seconds * share;
+    m.visibilitySeconds = st.seconds - m.evaluationSeconds;
+    m.evaluations = st.evaluations;
+    m.outsideGrid = st.outsideGrid;
+    m.emptyVoxel = st.emptyVoxel;
+}
+
+void equalError(MethodResult& m, const std::vector<CurvePoint>& curve) {
+    m.equalErrorSeconds = equalErrorTime(curve, m.metrics.relMse, m.equalErrorExtrapolated);
+    m.speedupOverEvaluation = m.evaluationSeconds > 0.0 ? m.equalErrorSeconds / m.evaluationSeconds : 0.0;
+    m.speedupOverRender = m.seconds > 0.0 ? m.equalErrorSeconds / m.seconds : 0.0;
+}
+
+}  // namespace
+
+std::string referenceKey(const Scene& scene, const ValidateSettings& s, int width, int height) {
+    uint64_t h = sceneHash(scene);
+    const Camera& c = s.camera;
+    int type = int(c.type);
+    fnv(h, &type, sizeof type);
+    fnv(h, &c.position, sizeof c.position);
+    fnv(h, &c.worldFromCamera, sizeof c.worldFromCamera);
+    float f[] = {c.yfov, c.aspectRatio, c.xmag, c.ymag};
+    fnv(h, f, sizeof f);
+    int v[] = {width, height, s.referenceSpp, s.maxDepth, int(s.seed)};
+    fnv(h, v, sizeof v);
+    const char version[] = "nrad path tracer 1";  // bump when the renderer's output changes
+    fnv(h, version, sizeof version);
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
+    return hex;
+}
+
+double equalErrorTime(const std::vector<CurvePoint>& curve, double relMse, bool& extrapolated) {
+    extrapolated = true;
+    if (curve.empty() || !(relMse > 0.0)) return 0.0;
+    // relMSE falls with time; find the segment that brackets the target, interpolate log-log.
+    for (size_t i = 1; i < curve.size(); ++i) {
+        double e0 = curve[i - 1].metrics.relMse, e1 = curve[i].metrics.relMse;
+        if ((e0 >= relMse && relMse >= e1) && e0 > 0.0 && e1 > 0.0 && e0 != e1) {
+            double t = (std::log(relMse) - std::log(e0)) / (std::log(e1) - std::log(e0));
+            extrapolated = false;
+            return std::exp(std::log(curve[i - 1].seconds) + t * (std::log(curve[i].seconds) - std::log(curve[i - 1].seconds)));
+        }
+    }
+    // Outside the curve: Monte Carlo error ~ 1 / samples ~ 1 / time, from the nearer end.
+    const CurvePoint& end = relMse > curve.front().metrics.relMse ? curve.front() : curve.back();
+    return end.metrics.relMse > 0.0 ? end.seconds * end.metrics.relMse / relMse : 0.0;
+}
+
+ValidationResult runValidation(const Scene& scene, const std::string& scenePath, NradAsset asset, const std::string& assetPath,
+                               const ValidateSettings& settings, const std::function<void(const std::string&)>& log) {
+    auto say = [&](const std::string& line) {
+        if (log) log(line);
+    };
+    ValidationResult r;
+    r.scenePath = scenePath;
+    r.assetPath = assetPath;
+    r.settings = settings;
+    const Camera& camera = settings.camera;
+    float aspect = camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f;
+    r.width = std::max(1, settings.width);
+    r.height = settings.height > 0 ? settings.height : std::max(1, int(std::lround(float(r.width) / aspect)));
+
+    Accel accel(scene.mesh);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    RenderSettings rs;
+    rs.width = r.width;
+    rs.height = r.height;
+    rs.maxDepth = settings.maxDepth;
+
+    // 1. The reference: given, cached, or rendered (and cached).
+    if (!settings.referenceImage.empty()) {
+        r.reference = readExr(settings.referenceImage);
+        if (r.reference.width != r.width || r.reference.height != r.height)
+            throw std::runtime_error(settings.referenceImage + ": the reference is " + std::to_string(r.reference.width) + "x" +
+                                     std::to_string(r.reference.height) + ", the validation renders " + std::to_string(r.width) +
+                                     "x" + std::to_string(r.height));
+        r.referenceSource = settings.referenceImage;
+    } else {
+        std::string key = referenceKey(scene, settings, r.width, r.height);
+        if (!settings.cacheDir.empty()) r.referenceCacheFile = (fs::path(settings.cacheDir) / ("reference-" + key + ".exr")).string();
+        if (!r.referenceCacheFile.empty() && fs::exists(r.referenceCacheFile)) {
+            try {
+                Image cached = readExr(r.referenceCacheFile);
+                if (cached.width == r.width && cached.height == r.height) {
+                    r.reference = std::move(cached);
+                    r.referenceSource = "cache";
+                }
+            } catch (const std::exception&) {
+                // unreadable cache entry: render again and replace it
+            }
+        }
+        if (r.referenceSource.empty()) {
+            say("reference: path tracing " + std::to_string(r.width) + "x" + std::to_string(r.height) + " at " +
+                std::to_string(settings.referenceSpp) + " spp, path length " +
+                (settings.maxDepth ? std::to_string(settings.maxDepth) : std::string("unbounded")));
+            RenderSettings ref = rs;
+            ref.spp = settings.referenceSpp;
+            ref.seed = settings.seed;
+            RenderStats st;
+            r.reference = tracer.render(camera, ref, &st);
+            r.referenceSeconds = st.seconds;
+            r.referenceSource = "rendered";
+            if (!r.referenceCacheFile.empty()) {
+                fs::create_directories(settings.cacheDir);
+                writeExr(r.referenceCacheFile, r.reference);
+            }
+        } else {
+            say("reference: from the cache, " + r.referenceCacheFile);
+        }
+    }
+
+    // 2. The path tracer's convergence against the reference, with an independent seed.
+    for (int spp = 1; spp <= std::max(1, settings.curveMaxSpp); spp *= 2) {
+        RenderSettings c = rs;
+        c.spp = spp;
+        c.seed = settings.seed + 1;
+        RenderStats st;
+        Image img = tracer.render(camera, c, &st);
+        r.curve.push_back({spp, st.seconds, compareImages(img, r.reference, settings.exposure)});
+        char line[160];
+        std::snprintf(line, sizeof line, "path tracer %4d spp: %.3f s, relMSE %.4g", spp, st.seconds, r.curve.back().metrics.relMse);
+        say(line);
+        if (spp > (1 << 29)) break;
+    }
+
+    // 3. Through the asset, as an engine would (the public runtime API).
+    NradAssetInfo info;
+    if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
+    RenderSettings fh = rs;
+    fh.spp = settings.neuralSpp;
+    fh.seed = settings.seed;
+    {
+        MethodResult m;
+        m.name = "neural";
+        NeuralRenderStats st;
+        if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
+            throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
+        score(m, st, r.reference, settings.exposure);
+        m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
+        equalError(m, r.curve);
+        r.neural = std::move(m);
+        char line[200];
+        std::snprintf(line, sizeof line, "neural (%d spp): %.3g s (evaluation %.3g s), relMSE %.4g", settings.neuralSpp,
+                      r.neural.seconds, r.neural.evaluationSeconds, r.neural.metrics.relMse);
+        say(line);
+    }
+    const char* json = nullptr;
+    size_t length = 0;
+    if (nradGetMetadata(asset, &json, &length) == NRAD_OK && length > 0)
+        r.assetMetadata = nlohmann::json::parse(std::string(json, length), nullptr, false);
+    if (r.assetMetadata.is_discarded()) r.assetMetadata = nullptr;
+
+    // 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
+    if (settings.baseline) {
+        auto t0 = clock_type::now();
+        SampleSettings ss;
+        glm::uvec3 dims(info.gridDims[0], info.gridDims[1], info.gridDims[2]);
+        const nlohmann::json& bake = r.assetMetadata.is_object() ? r.assetMetadata.value("bake", nlohmann::json()) : nlohmann::json();
+        if (bake.is_object()) {
+            ss.points = bake.value("points", ss.points);
+            ss.paths = bake.value("paths", ss.paths);
+            ss.maxDepth = bake.value("max_depth", ss.maxDepth);
+            ss.seed = bake.value("seed", ss.seed);
+            ss.minSamplesPerVoxel = bake.value("min_samples_per_voxel", ss.minSamplesPerVoxel);
+            r.baselineSamplesNote = "the bake's own settings, from the asset's metadata";
+        } else {
+            r.baselineSamplesNote = "default bake settings (the asset has no metadata)";
+        }
+        VoxelGrid grid(scene.bounds, dims);
+        SurfacePieces pieces(scene.mesh, grid);
+        SampleStats sst;
+        say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths)");
+        std::vector<TrainingSample> samples = generateTrainingSamples(scene, tracer, grid, pieces, ss, sst);
+        r.baselineTrainingSamples = samples.size();
+        glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+        glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+        r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
+        ShProbeGrid probes = fitShProbeGrid(samples, lower, upper, r.baselineProbes, &r.baselineFit);
+        r.baselineSeconds = since(t0);
+        FirstHitEvaluator evaluate = [&probes](size_t n, const float* p, const float* /*normals*/, const float* d, float* rgb,
+                                               uint8_t* flags) {
+            for (size_t i = 0; i < n; ++i) {
+                glm::vec3 L = probes.evaluate({p[3 * i], p[3 * i + 1], p[3 * i + 2]}, {d[3 * i], d[3 * i + 1], d[3 * i + 2]});
+                for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(L[c]) ? L[c] : 0.0f;
+                flags[i] = NRAD_POINT_OK;
+            }
+            return NRAD_OK;
+        };
+        MethodResult m;
+        m.name = "sh-probes";
+        NeuralRenderStats st;
+        renderFirstHit(scene, accel, evaluate, camera, fh, m.image, &st);
+        score(m, st, r.reference, settings.exposure);
+        m.bytes = probes.bytes();
+        equalError(m, r.curve);
+        r.baseline = std::move(m);
+        char line[200];
+        std::snprintf(line, sizeof line, "baseline: %ux%ux%u L2 SH probes (%zu bytes), fit relMSE %.4g, image relMSE %.4g",
+                      r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z, r.baseline->bytes, r.baselineFit.trainRelMse,
+                      r.baseline->metrics.relMse);
+        say(line);
+    }
+    return r;
+}
+
+}  // namespace nrad

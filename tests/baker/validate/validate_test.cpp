@@ -1,0 +1,157 @@
+// Validation building blocks against closed forms: image metrics, the SH basis and probe fit, the
+// equal-error interpolation, the bake curve aggregation and the SVG plot.
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "baker/validate/metrics.h"
+#include "baker/validate/report.h"
+#include "baker/validate/sh_probes.h"
+#include "baker/validate/validate.h"
+
+namespace nrad {
+namespace {
+
+Image constant(int w, int h, glm::vec3 v) {
+    Image img(w, h);
+    for (glm::vec3& p : img.pixels) p = v;
+    return img;
+}
+
+TEST(Metrics, ClosedFormValues) {
+    Image ref = constant(4, 2, glm::vec3(0.1f, 0.2f, 0.3f)), img = ref;
+    for (glm::vec3& p : img.pixels) p += glm::vec3(0.1f);
+    ImageMetrics m = compareImages(img, ref);
+    EXPECT_NEAR(m.rmse, 0.1, 1e-6);
+    double rel = (0.01 / (0.01 + 0.01) + 0.01 / (0.04 + 0.01) + 0.01 / (0.09 + 0.01)) / 3.0;
+    EXPECT_NEAR(m.relMse, rel, 1e-6);
+    EXPECT_NEAR(m.meanRelativeError, (0.1 / 0.11 + 0.1 / 0.21 + 0.1 / 0.31) / 3.0, 1e-6);
+    // PSNR of tonemapped values: sRGB(0.2) - sRGB(0.1) etc.
+    auto srgb = [](double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055; };
+    double mse = (std::pow(srgb(0.2) - srgb(0.1), 2) + std::pow(srgb(0.3) - srgb(0.2), 2) + std::pow(srgb(0.4) - srgb(0.3), 2)) / 3.0;
+    EXPECT_NEAR(m.psnr, 10.0 * std::log10(1.0 / mse), 1e-3);
+    EXPECT_TRUE(std::isinf(compareImages(ref, ref).psnr));
+    EXPECT_EQ(compareImages(ref, ref).relMse, 0.0);
+    EXPECT_THROW(compareImages(constant(2, 2, glm::vec3(0)), ref), std::invalid_argument);
+    // A NaN pixel counts as zero radiance.
+    Image nan = ref;
+    nan.pixels[0] = glm::vec3(std::nanf(""));
+    EXPECT_TRUE(std::isfinite(compareImages(nan, ref).relMse));
+    EXPECT_GT(compareImages(nan, ref).relMse, 0.0);
+}
+
+TEST(Metrics, ErrorImagesAndDecades) {
+    Image ref = constant(2, 1, glm::vec3(1.0f)), img = ref;
+    ref.pixels[1] = glm::vec3(0.002f);
+    img.pixels[0] = glm::vec3(1.5f);
+    img.pixels[1] = glm::vec3(0.004f);
+    Image sq = squaredDifferenceImage(img, ref);
+    EXPECT_NEAR(sq.pixels[0].x, 10.0f * 0.25f, 1e-6f);
+    EXPECT_NEAR(sq.pixels[1].x, 10.0f * 4e-6f, 1e-9f);
+    std::vector<DecadeError> d = relMseByDecade(img, ref);
+    ASSERT_EQ(d.size(), 2u);  // luminance 0.002 in [1e-3, 1e-2), 1 in [1, 10)
+    EXPECT_DOUBLE_EQ(d[0].lo, 1e-3);
+    EXPECT_NEAR(d[0].relativeRms, 1.0, 1e-5);  // 0.004 against 0.002: 100%
+    EXPECT_DOUBLE_EQ(d[1].lo, 1.0);
+    EXPECT_NEAR(d[1].relativeRms, 0.5, 1e-6);
+    EXPECT_NEAR(d[1].relMse, 0.25 / 1.01, 1e-6);
+    // The false-colour map runs from blue (small error) to red (large).
+    Image map = relativeErrorMap(img, ref);
+    EXPECT_GT(map.pixels[0].r, map.pixels[0].b);  // 50%: red end
+    Image same = relativeErrorMap(ref, ref);
+    EXPECT_GT(same.pixels[0].b, same.pixels[0].r);  // 0: blue end
+}
+
+// A field that is exactly an L2 SH function per probe, trilinear in space, is recovered exactly.
+TEST(ShProbes, FitRecoversAnExactProbeField) {
+    ShProbeGrid truth;
+    truth.dims = {3, 2, 2};
+    truth.lower = {-1, 0, 0};
+    truth.upper = {2, 1, 3};
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), u01(0.0f, 1.0f);
+    truth.coeffs.resize(truth.probeCount() * 27);
+    for (float& c : truth.coeffs) c = u(rng);
+    for (size_t p = 0; p < truth.probeCount(); ++p) truth.coeffs[p * 27] = truth.coeffs[p * 27 + 9] = truth.coeffs[p * 27 + 18] = 8.0f;
+    std::vector<TrainingSample> samples;
+    for (int i = 0; i < 4000; ++i) {
+        TrainingSample s;
+        for (int k = 0; k < 3; ++k) s.position[k] = truth.lower[k] + u01(rng) * (truth.upper[k] - truth.lower[k]);
+        s.wo = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+        s.normal = s.wo;
+        s.radiance = truth.evaluate(s.position, s.wo);
+        ASSERT_GT(s.radiance.x, 0.0f);  // no clamping in play
+        s.voxel = 0;
+        samples.push_back(s);
+    }
+    ShFitStats st;
+    ShProbeGrid fit = fitShProbeGrid(samples, truth.lower, truth.upper, truth.dims, &st, 1e-9);
+    EXPECT_LT(st.relativeResidual, 1e-6);
+    for (size_t i = 0; i < truth.coeffs.size(); ++i) EXPECT_NEAR(fit.coeffs[i], truth.coeffs[i], 8e-3f) << i;  // fp16 rounding
+    EXPECT_LT(st.trainRelMse, 1e-5);
+}
+
+TEST(ShProbes, BasisIsOrthonormalOnTheSphere) {
+    // Monte Carlo over a Fibonacci sphere: <Y_i, Y_j> = delta_ij.
+    const int n = 20000;
+    double g[9][9] = {};
+    for (int s = 0; s < n; ++s) {
+        double z = 1.0 - (2.0 * s + 1.0) / n, r = std::sqrt(1.0 - z * z), phi = s * 2.399963229728653;
+        float y[9];
+        shBasis(glm::vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z)), y);
+        for (int i = 0; i < 9; ++i)
+            for (int j = 0; j < 9; ++j) g[i][j] += double(y[i]) * y[j] * 4.0 * M_PI / n;
+    }
+    for (int i = 0; i < 9; ++i)
+        for (int j = 0; j < 9; ++j) EXPECT_NEAR(g[i][j], i == j ? 1.0 : 0.0, 2e-3) << i << "," << j;
+}
+
+TEST(ShProbes, DimsFitTheByteBudget) {
+    glm::uvec3 d = probeDimsForBudget({0, 0, 0}, {1, 1, 1}, 6240);
+    EXPECT_LE(size_t(d.x) * d.y * d.z * 54, 6240u);
+    EXPECT_GT((size_t(d.x) * d.y * d.z + std::min({d.x * d.y, d.y * d.z, d.x * d.z})) * 54, 6240u);  // no whole layer more fits
+    glm::uvec3 flat = probeDimsForBudget({0, 0, 0}, {4, 1, 1}, 6240);
+    EXPECT_GT(flat.x, flat.y);
+    EXPECT_EQ(probeDimsForBudget({0, 0, 0}, {1, 1, 1}, 10), glm::uvec3(2));  // at least 2 per axis
+}
+
+TEST(Validate, EqualErrorTimeInterpolatesLogLog) {
+    std::vector<CurvePoint> curve;
+    for (int k = 0; k < 5; ++k) {
+        CurvePoint c;
+        c.spp = 1 << k;
+        c.seconds = 0.5 * c.spp;
+        c.metrics.relMse = 0.4 / c.spp;  // error ~ 1 / time
+        curve.push_back(c);
+    }
+    bool extrapolated = true;
+    EXPECT_NEAR(equalErrorTime(curve, 0.4 / 3.0, extrapolated), 1.5, 1e-9);
+    EXPECT_FALSE(extrapolated);
+    EXPECT_NEAR(equalErrorTime(curve, 0.4 / 64.0, extrapolated), 32.0, 1e-9);  // beyond the curve, 1/time
+    EXPECT_TRUE(extrapolated);
+    EXPECT_NEAR(equalErrorTime(curve, 0.8, extrapolated), 0.25, 1e-9);  // worse than 1 spp
+    EXPECT_TRUE(extrapolated);
+}
+
+TEST(Report, BakeCurveAggregatesVoxelsAndPlotsAreSvg) {
+    nlohmann::json stats = {{"voxels",
+                             {{{"curve_epoch_seconds_relmse", {{0, 0.1, 1.0}, {10, 0.2, 0.5}}}},
+                              {{"curve_epoch_seconds_relmse", {{0, 0.15, 4.0}, {10, 0.3, 0.1}}}}}}};
+    std::vector<BakeCurvePoint> c = bakeTrainingCurve(stats);
+    ASSERT_EQ(c.size(), 4u);
+    EXPECT_DOUBLE_EQ(c[0].seconds, 0.1);
+    EXPECT_DOUBLE_EQ(c[0].meanRelMse, 2.5);  // second voxel not started: its first error
+    EXPECT_DOUBLE_EQ(c[2].meanRelMse, 2.25);  // t = 0.2: 0.5 and 4.0
+    EXPECT_DOUBLE_EQ(c[3].meanRelMse, 0.3);
+    EXPECT_DOUBLE_EQ(c[3].medianRelMse, 0.3);
+    EXPECT_TRUE(bakeTrainingCurve(nlohmann::json::object()).empty());
+    std::string svg = svgLogLogPlot("t <&>", "x", "y", {{"a", "#000", {{1, 1}, {10, 0.1}}, true}, {"b", "red", {{-1, 1}}, false}});
+    EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+    EXPECT_NE(svg.find("t &lt;&amp;&gt;"), std::string::npos);
+    EXPECT_NE(svg.find("<polyline"), std::string::npos);
+    EXPECT_NE(svg.find("</svg>"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace nrad
