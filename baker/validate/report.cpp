@@ -364,7 +364,7 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
     h << "</div>\n";
     if (r.baseline) {
-        const nlohmann::json c = comparisonJson(r);
+        const nlohmann::json& c = j["comparison"];  // computed once, for report.json
         h << "<h2>Neural against SH probes</h2>\n<p>Better overall: <b>" << c["better_overall"].get<std::string>()
           << "</b>. The neural image is closer to the reference in "
           << fmt("%.1f", 100.0 * c["pixels_where_neural_is_better"].get<double>()) << "% of the pixels.</p>\n"
