@@ -2,6 +2,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "baker/render/image_io.h"
 #include "baker/render/light_sampler.h"
 #include "baker/render/neural_render.h"
+#include "baker/render/online_render.h"
 #include "baker/render/path_tracer.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"
@@ -34,6 +36,9 @@ struct RenderOptions {
     int threads = 0;
     float exposure = 0.0f;
     bool quiet = false;
+    NeeMode nee = NeeMode::Power;
+    float neeMix = 0.1f;
+    std::string chosenLight;
 };
 
 int writeOutputs(const RenderOptions& o, const Image& image) {
@@ -96,25 +101,59 @@ int runRender(const RenderOptions& o) {
     settings.height = o.height > 0 ? o.height : std::max(1, int(std::lround(settings.width / aspect)));
 
     Accel accel(scene.mesh);
+    if (!o.chosenLight.empty() && !isSupportedImagePath(o.chosenLight)) {
+        std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", o.chosenLight.c_str());
+        return kExitUsage;
+    }
     if (!o.asset.empty()) return renderNeural(o, scene, accel, camera, settings);
     LightSampler lights(scene);
     if (lights.empty() && !o.quiet)
         std::fprintf(stderr, "warning: %s: the scene has no light sources; the image is black\n", o.scene.c_str());
     auto t1 = std::chrono::steady_clock::now();
 
-    PathTracer tracer(scene, accel, lights);
+    NeeSettings nee;
+    nee.mode = o.nee;
+    nee.mix = o.neeMix;
+    nee.seed = o.seed;
+    LightSelector selector(lights, scene.bounds, nee);
+    PathTracer tracer(scene, accel, lights, &selector);
     ProgressBar bar("render", !o.quiet);
     RenderStats stats;
-    Image image = tracer.render(camera, settings, &stats, [&](double f) { bar.update(f); });
+    Image image;
+    std::string neeSummary;
+    if (o.nee == NeeMode::Power && o.chosenLight.empty()) {
+        image = tracer.render(camera, settings, &stats, [&](double f) { bar.update(f); });
+    } else {
+        // Rounds with online training (learned), also used for uniform/power so their times compare.
+        OnlineRenderResult r = renderOnline(tracer, &selector, camera, settings, {}, [&](double f) { bar.update(f); });
+        image = std::move(r.image);
+        stats = r.stats.render;
+        char buf[256];
+        std::snprintf(buf, sizeof buf, ", light selection %s over %zu lights (%llu training steps, %.2f s)",
+                      neeModeName(o.nee), lights.groupCount(), (unsigned long long)r.stats.trainingSteps,
+                      r.stats.trainingSeconds);
+        neeSummary = buf;
+        if (!o.chosenLight.empty()) {
+            Image chosen(settings.width, settings.height);
+            for (size_t i = 0; i < chosen.pixels.size(); ++i) chosen.pixels[i] = lightGroupColor(r.firstLight[i]);
+            try {
+                writeImage(o.chosenLight, chosen, 0.0f);
+            } catch (const IoError& e) {
+                std::fprintf(stderr, "nrad render: %s\n", e.what());
+                return kExitIo;
+            }
+        }
+    }
     if (int code = writeOutputs(o, image)) return code;
     double setup = std::chrono::duration<double>(t1 - t0).count();
     std::printf("rendered %s: %dx%d, %d spp, max depth %s, %.2f s (scene setup %.2f s), %.3g samples, %.2f Mrays/s "
-                "(%llu camera, %llu extension, %llu shadow), %llu non-finite samples dropped -> %s\n",
+                "(%llu camera, %llu extension, %llu shadow), %llu non-finite samples dropped%s -> %s\n",
                 o.scene.c_str(), settings.width, settings.height, settings.spp,
                 settings.maxDepth ? std::to_string(settings.maxDepth).c_str() : "unbounded", stats.seconds, setup,
                 double(stats.samples), stats.raysPerSecond() * 1e-6, (unsigned long long)stats.rays.primary,
                 (unsigned long long)stats.rays.extension, (unsigned long long)stats.rays.shadow,
-                (unsigned long long)stats.rays.nonFiniteSamples, CLI::detail::join(o.outputs, ", ").c_str());
+                (unsigned long long)stats.rays.nonFiniteSamples, neeSummary.c_str(),
+                CLI::detail::join(o.outputs, ", ").c_str());
     return kExitOk;
 }
 
@@ -140,6 +179,18 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("--seed", opts->seed, "Seed of the quasi-random sequence");
     cmd->add_option("--threads", opts->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
     cmd->add_option("--exposure", opts->exposure, "PNG exposure in stops")->check(CLI::Range(-64.0f, 64.0f));
+    cmd->add_option("--nee", opts->nee,
+                    "Light selection for next event estimation: power (default), uniform, or learned (a network "
+                    "trained while rendering; docs/lights.md)")
+        ->transform(CLI::CheckedTransformer(
+            std::map<std::string, NeeMode>{{"power", NeeMode::Power}, {"uniform", NeeMode::Uniform},
+                                           {"learned", NeeMode::Learned}},
+            CLI::ignore_case));
+    cmd->add_option("--nee-mix", opts->neeMix,
+                    "Learned selection: share of the uniform choice among the lights that can contribute (default 0.1)")
+        ->check(CLI::Range(0.001f, 1.0f));
+    cmd->add_option("--chosen-light", opts->chosenLight,
+                    "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
     return [opts]() { return runRender(*opts); };
 }

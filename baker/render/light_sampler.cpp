@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "baker/render/surface.h"
 
@@ -62,6 +63,7 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene) {
     totalPower_ = sum;
     for (double& c : cdf_) c /= sum;
     if (!cdf_.empty()) cdf_.back() = 1.0;
+    buildGroups(power);
 }
 
 float LightSampler::pickProbability(size_t i) const {
@@ -69,11 +71,22 @@ float LightSampler::pickProbability(size_t i) const {
 }
 
 LightSample LightSampler::sample(const glm::vec3& p, float uPick, const glm::vec2& u) const {
-    LightSample ls;
-    if (lights_.empty()) return ls;
+    if (lights_.empty()) return LightSample{};
     size_t i = size_t(std::upper_bound(cdf_.begin(), cdf_.end(), double(uPick)) - cdf_.begin());
     i = std::min(i, lights_.size() - 1);
-    float pick = pickProbability(i);
+    return sampleEntry(i, pickProbability(i), p, u);
+}
+
+LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, float uPick, const glm::vec2& u) const {
+    const Group& group = groups_[g];
+    size_t k = size_t(std::upper_bound(group.cdf.begin(), group.cdf.end(), double(uPick)) - group.cdf.begin());
+    k = std::min(k, group.entries.size() - 1);
+    size_t i = group.entries[k];
+    return sampleEntry(i, pickInGroup_[i], p, u);
+}
+
+LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const {
+    LightSample ls;
     if (!(pick > 0.0f)) return ls;
     const Entry& e = lights_[i];
     if (e.triangle) {
@@ -127,11 +140,172 @@ float LightSampler::pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm
                                 const glm::vec3& nLight) const {
     int32_t i = entryOfTriangle_[triangle];
     if (i < 0) return 0.0f;
+    return entryPdf(size_t(i), pickProbability(size_t(i)), p, pLight, nLight);
+}
+
+float LightSampler::pdfTriangleInGroup(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight,
+                                       const glm::vec3& nLight) const {
+    int32_t i = entryOfTriangle_[triangle];
+    if (i < 0) return 0.0f;
+    return entryPdf(size_t(i), pickInGroup_[size_t(i)], p, pLight, nLight);
+}
+
+int32_t LightSampler::groupOfTriangle(uint32_t triangle) const {
+    int32_t i = entryOfTriangle_[triangle];
+    return i < 0 ? -1 : int32_t(groupOfEntry_[size_t(i)]);
+}
+
+float LightSampler::entryPdf(size_t i, float pick, const glm::vec3& p, const glm::vec3& pLight,
+                             const glm::vec3& nLight) const {
     glm::vec3 d = pLight - p;
     float dist2 = glm::dot(d, d);
     float absCos = std::abs(glm::dot(nLight, d)) / std::sqrt(dist2);
     if (!(absCos > 0.0f)) return 0.0f;
-    return pickProbability(size_t(i)) * dist2 / (absCos * lights_[size_t(i)].area);
+    return pick * dist2 / (absCos * lights_[i].area);
+}
+
+bool LightSampler::groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const {
+    const Group& group = groups_[g];
+    if (group.directional) return true;
+    // Tolerance: a light lying in the tangent plane contributes nothing, so admitting it is harmless.
+    float tol = 1e-4f * std::max(glm::length(group.upper - group.lower), rayOffset(p));
+    float above = -std::numeric_limits<float>::infinity(), front = -std::numeric_limits<float>::infinity();
+    for (int c = 0; c < 8; ++c) {
+        glm::vec3 corner((c & 1) ? group.upper.x : group.lower.x, (c & 2) ? group.upper.y : group.lower.y,
+                         (c & 4) ? group.upper.z : group.lower.z);
+        above = std::max(above, glm::dot(corner - p, ng));
+        if (group.planar) front = std::max(front, glm::dot(p - corner, group.normal));
+    }
+    if (!(above > -tol)) return false;
+    return !group.planar || front > -tol;
+}
+
+void LightSampler::buildGroups(const std::vector<double>& power) {
+    // 1. Lights: union of emissive triangles of one material that share a vertex index.
+    const size_t n = lights_.size();
+    std::vector<uint32_t> parent(n);
+    for (size_t i = 0; i < n; ++i) parent[i] = uint32_t(i);
+    auto find = [&](uint32_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    std::vector<std::pair<uint64_t, uint32_t>> keys;  // (material << 32 | vertex, entry)
+    for (size_t i = 0; i < n; ++i) {
+        if (!lights_[i].triangle) continue;
+        uint32_t t = lights_[i].index;
+        uint64_t mat = scene_.mesh.materialIds[t];
+        const glm::uvec3& tri = scene_.mesh.triangles[t];
+        for (uint32_t v : {tri.x, tri.y, tri.z}) keys.push_back({(mat << 32) | v, uint32_t(i)});
+    }
+    std::sort(keys.begin(), keys.end());
+    for (size_t k = 1; k < keys.size(); ++k)
+        if (keys[k].first == keys[k - 1].first) {
+            uint32_t a = find(keys[k].second), b = find(keys[k - 1].second);
+            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+        }
+    std::vector<std::vector<uint32_t>> lights;
+    std::vector<int32_t> lightOfRoot(n, -1);
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t r = find(uint32_t(i));
+        if (lightOfRoot[r] < 0) {
+            lightOfRoot[r] = int32_t(lights.size());
+            lights.emplace_back();
+        }
+        lights[size_t(lightOfRoot[r])].push_back(uint32_t(i));
+    }
+
+    // 2. Clusters when there are too many lights: split the largest cluster at the median of its lights'
+    // centres along the axis where they spread most.
+    auto entryCenter = [&](uint32_t i) -> glm::vec3 {
+        const Entry& e = lights_[i];
+        if (e.triangle) {
+            const glm::uvec3& tri = scene_.mesh.triangles[e.index];
+            const auto& P = scene_.mesh.positions;
+            return (P[tri.x] + P[tri.y] + P[tri.z]) / 3.0f;
+        }
+        const PunctualLight& l = scene_.lights[e.index];
+        return l.type == PunctualLight::Type::Directional ? scene_.bounds.center() : l.position;
+    };
+    std::vector<glm::vec3> lightCenter(lights.size());
+    for (size_t l = 0; l < lights.size(); ++l) {
+        glm::vec3 c(0.0f);
+        for (uint32_t i : lights[l]) c += entryCenter(i);
+        lightCenter[l] = c / float(lights[l].size());
+    }
+    std::vector<std::vector<uint32_t>> clusters(1);
+    for (size_t l = 0; l < lights.size(); ++l) clusters[0].push_back(uint32_t(l));
+    if (lights.size() <= kMaxLightGroups) {
+        clusters.assign(lights.size(), {});
+        for (size_t l = 0; l < lights.size(); ++l) clusters[l] = {uint32_t(l)};
+    }
+    while (clusters.size() < kMaxLightGroups) {
+        size_t largest = 0;
+        for (size_t c = 1; c < clusters.size(); ++c)
+            if (clusters[c].size() > clusters[largest].size()) largest = c;
+        if (clusters[largest].size() < 2) break;
+        std::vector<uint32_t>& members = clusters[largest];
+        Bounds3 b;
+        for (uint32_t l : members) b.extend(lightCenter[l]);
+        glm::vec3 ext = b.extent();
+        int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+        std::stable_sort(members.begin(), members.end(),
+                         [&](uint32_t a, uint32_t c) { return lightCenter[a][axis] < lightCenter[c][axis]; });
+        std::vector<uint32_t> upperHalf(members.begin() + std::ptrdiff_t(members.size() / 2), members.end());
+        members.resize(members.size() / 2);
+        std::sort(members.begin(), members.end());
+        std::sort(upperHalf.begin(), upperHalf.end());
+        clusters.push_back(std::move(upperHalf));
+    }
+    // Groups in the order of their first entry, so the numbering follows the scene.
+    for (auto& c : clusters) std::sort(c.begin(), c.end(), [&](uint32_t a, uint32_t b) { return lights[a][0] < lights[b][0]; });
+    std::sort(clusters.begin(), clusters.end(), [&](const auto& a, const auto& b) { return lights[a[0]][0] < lights[b[0]][0]; });
+
+    // 3. Group data.
+    groupOfEntry_.assign(n, 0);
+    pickInGroup_.assign(n, 0.0f);
+    groups_.clear();
+    for (const auto& cluster : clusters) {
+        Group g;
+        for (uint32_t l : cluster) g.entries.insert(g.entries.end(), lights[l].begin(), lights[l].end());
+        std::sort(g.entries.begin(), g.entries.end());
+        Bounds3 b;
+        bool planar = true;
+        glm::vec3 normal(0.0f);
+        for (uint32_t i : g.entries) {
+            g.power += power[i];
+            const Entry& e = lights_[i];
+            if (e.triangle) {
+                const glm::uvec3& tri = scene_.mesh.triangles[e.index];
+                for (uint32_t v : {tri.x, tri.y, tri.z}) b.extend(scene_.mesh.positions[v]);
+                glm::vec3 nt = scene_.mesh.geometricNormal(e.index);
+                const Material& m = scene_.materials[scene_.mesh.materialIds[e.index]];
+                if (m.doubleSided || (normal != glm::vec3(0.0f) && glm::dot(normal, nt) < 0.9999f)) planar = false;
+                if (normal == glm::vec3(0.0f)) normal = nt;
+            } else {
+                planar = false;
+                const PunctualLight& l = scene_.lights[e.index];
+                if (l.type == PunctualLight::Type::Directional)
+                    g.directional = true;
+                else
+                    b.extend(l.position);
+            }
+        }
+        g.planar = planar && normal != glm::vec3(0.0f);
+        g.normal = normal;
+        if (!b.empty()) {
+            g.lower = b.lower;
+            g.upper = b.upper;
+        }
+        double acc = 0.0;
+        for (uint32_t i : g.entries) {
+            acc += power[i];
+            g.cdf.push_back(acc / g.power);
+            groupOfEntry_[i] = uint32_t(groups_.size());
+            pickInGroup_[i] = float(power[i] / g.power);
+        }
+        g.cdf.back() = 1.0;
+        groups_.push_back(std::move(g));
+    }
 }
 
 }  // namespace nrad

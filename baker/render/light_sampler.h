@@ -1,6 +1,11 @@
 // LightSampler: every light of the scene (emissive triangles as area lights, KHR_lights_punctual point,
 // spot and directional lights) in one list, picked in proportion to emitted power, for next event
 // estimation. Also answers the pdf of having sampled a given emitter point (for MIS).
+//
+// For light selection (uniform, learned) the entries are also grouped into *lights* as a user sees them:
+// the emissive triangles of one material that share vertices form one light (a quad, a lamp shade), each
+// punctual light is one. Beyond kMaxLightGroups lights, lights are merged into spatial clusters (repeated
+// median splits of the largest cluster along its longest axis). Within a group an entry is picked by power.
 #pragma once
 
 #include <cstdint>
@@ -40,7 +45,38 @@ public:
     // Probability of picking light entry i (for tests).
     float pickProbability(size_t i) const;
 
+    // Light groups (see the top of this file).
+    static constexpr size_t kMaxLightGroups = 64;
+    size_t groupCount() const { return groups_.size(); }
+    double groupPower(size_t g) const { return groups_[g].power; }
+    // Group of emissive triangle `triangle`, -1 if it is not a light.
+    int32_t groupOfTriangle(uint32_t triangle) const;
+    // Group of light entry i (entries: emissive triangles in index order, then punctual lights).
+    uint32_t groupOfEntry(size_t i) const { return groupOfEntry_[i]; }
+    // Conservative test: can any point of group g send light to p, a point whose surface has geometric
+    // normal ng (towards the side light may arrive from)? False only when the whole group lies behind the
+    // tangent plane or p lies behind every emitting side of a one-sided planar group.
+    bool groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const;
+    // Samples a point of group g (entry by power within the group, uPick reused); the pdf does not include
+    // the probability of having chosen the group.
+    LightSample sampleGroup(size_t g, const glm::vec3& p, float uPick, const glm::vec2& u) const;
+    // Solid-angle pdf of sampleGroup() producing the given emitter point, without the group probability.
+    float pdfTriangleInGroup(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
+
 private:
+    LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
+    float entryPdf(size_t i, float pick, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
+    void buildGroups(const std::vector<double>& power);
+
+    struct Group {
+        std::vector<uint32_t> entries;  // light entries, ascending
+        std::vector<double> cdf;  // by power within the group, ends at 1
+        double power = 0.0;
+        glm::vec3 lower{0.0f}, upper{0.0f};  // bounds of every emitting point (area and positional lights)
+        bool directional = false;  // holds a directional light: contributes wherever its direction allows
+        bool planar = false;  // one-sided triangles that share one normal (`normal`)
+        glm::vec3 normal{0.0f};
+    };
     struct Entry {
         bool triangle;
         uint32_t index;  // triangle index or index into Scene::lights
@@ -51,6 +87,9 @@ private:
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1
     std::vector<int32_t> entryOfTriangle_;  // triangle -> entry, -1 if not emissive
     double totalPower_ = 0.0;
+    std::vector<Group> groups_;
+    std::vector<uint32_t> groupOfEntry_;
+    std::vector<float> pickInGroup_;  // per entry: probability of the entry given its group
     float sceneRadius_ = 1.0f;
 };
 

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 
@@ -32,30 +33,41 @@ constexpr int kRouletteStart = 3;
 }  // namespace
 
 glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
-                               RayCounters& counters, std::vector<RecordedRay>* record) const {
+                               RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee) const {
     ++counters.primary;
     if (record) record->push_back({origin, direction, std::numeric_limits<float>::infinity(), false});
     Hit hit = accel_.intersect(origin, direction);
     if (!hit.valid()) return glm::vec3(0.0f);
-    return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record);
+    return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record, nee);
 }
 
 glm::vec3 PathTracer::outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth,
-                                       RayCounters& counters) const {
-    return trace(si, sampler, maxDepth, counters, nullptr);
+                                       RayCounters& counters, NeeTrace* nee) const {
+    return trace(si, sampler, maxDepth, counters, nullptr, nee);
 }
 
 glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
-                            std::vector<RecordedRay>* record) const {
+                            std::vector<RecordedRay>* record, NeeTrace* nee) const {
     glm::vec3 L(0.0f), beta(1.0f);
     float prevBsdfPdf = 0.0f;
     glm::vec3 prevP(0.0f);
+    // Group selection probabilities at this vertex and the previous one (for the MIS weight of an emitter
+    // that the previous vertex's BSDF sample hit).
+    float probsA[LightSampler::kMaxLightGroups], probsB[LightSampler::kMaxLightGroups];
+    float *probs = probsA, *prevProbs = probsB;
+    const size_t groups = selector_ ? lights_.groupCount() : 0;
     for (int depth = 0;; ++depth) {  // depth = segments traced before the one that reached si
         if (!isBlack(si.emission)) {
             if (depth == 0) {
                 L += beta * si.emission;
             } else {
-                float lightPdf = lights_.pdfTriangle(si.triangle, prevP, si.p, si.ng);
+                float lightPdf;
+                if (selector_) {
+                    int32_t g = lights_.groupOfTriangle(si.triangle);
+                    lightPdf = g < 0 ? 0.0f : prevProbs[g] * lights_.pdfTriangleInGroup(si.triangle, prevP, si.p, si.ng);
+                } else {
+                    lightPdf = lights_.pdfTriangle(si.triangle, prevP, si.p, si.ng);
+                }
                 L += beta * si.emission * powerHeuristic(prevBsdfPdf, lightPdf);
             }
         }
@@ -70,8 +82,32 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         float uPick = uPickLobe.x, uLobe = uPickLobe.y;
 
         // Next event estimation.
-        if (!lights_.empty()) {
-            LightSample ls = lights_.sample(si.p, uPick, uLight);
+        NeeRecord neeRecord;
+        bool recordHere = false;
+        int chosen = -1;
+        LightSample ls;
+        if (selector_ && groups > 0) {
+            recordHere = selector_->distribution(si.p, si.ng, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
+            // Invert the CDF of probs with uPick, then reuse uPick within the group.
+            float acc = 0.0f, before = 0.0f;
+            for (size_t g = 0; g < groups; ++g) {
+                if (!(probs[g] > 0.0f)) continue;
+                chosen = int(g);
+                before = acc;
+                acc += probs[g];
+                if (uPick < acc) break;
+            }
+            if (chosen >= 0) {
+                float p = probs[chosen];
+                float uIn = std::clamp((uPick - before) / p, 0.0f, 0x1.fffffep-1f);
+                ls = lights_.sampleGroup(size_t(chosen), si.p, uIn, uLight);
+                ls.pdf *= p;
+            }
+            if (depth == 0 && nee) nee->firstLight = chosen;
+        } else if (!lights_.empty()) {
+            ls = lights_.sample(si.p, uPick, uLight);
+        }
+        {
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {
                 glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
                 if (!isBlack(f)) {
@@ -86,6 +122,15 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
                     if (tfar > 0.0f && !accel_.occluded(o, ls.wi, tfar)) {
                         float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(si.wo, ls.wi));
                         L += beta * f * ls.Li * (w / ls.pdf);
+                        if (recordHere) {
+                            // The group's contribution estimate (without MIS weight) over the probability
+                            // of having chosen it: the weight of the cross-entropy gradient.
+                            glm::vec3 c = f * ls.Li;
+                            neeRecord.light = uint32_t(chosen);
+                            neeRecord.weight = (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z) / ls.pdf;
+                            if (neeRecord.weight > 0.0f && std::isfinite(neeRecord.weight))
+                                nee->records->push_back(neeRecord);
+                        }
                     }
                 }
             }
@@ -98,6 +143,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         if (isBlack(beta) || !isFinite(beta)) break;
         prevBsdfPdf = bs.pdf;
         prevP = si.p;
+        std::swap(probs, prevProbs);
         if (depth + 1 >= kRouletteStart) {
             float q = std::min(1.0f, maxComponent(beta));
             if (uRoulette >= q) break;

@@ -1,5 +1,6 @@
 // PathTracer: unbiased Monte Carlo estimates of L(h(o, d), -d), the radiance arriving along a ray.
-// Next event estimation over all lights (picked by power) combined with BSDF sampling by multiple
+// Next event estimation over all lights (picked by power, uniformly or by a learned distribution; see
+// light_selection.h) combined with BSDF sampling by multiple
 // importance sampling (power heuristic), Russian roulette, an optional maximum path length, no clamping.
 // Images are rendered over tiles with TBB; every sample depends only on (pixel, sample index, seed), so
 // the image is byte-identical for any number of threads.
@@ -15,6 +16,7 @@
 #include "baker/render/accel.h"
 #include "baker/render/image_io.h"
 #include "baker/render/light_sampler.h"
+#include "baker/render/light_selection.h"
 #include "baker/render/sampler.h"
 #include "baker/render/surface.h"
 #include "baker/scene/scene.h"
@@ -52,20 +54,33 @@ struct RenderStats {
     double raysPerSecond() const { return seconds > 0.0 ? double(rays.total()) / seconds : 0.0; }
 };
 
+// Per-path extras of light selection: where to append the training records of the vertices at which the
+// selection network was evaluated, and the group chosen at the first vertex (-1: none), for pictures.
+struct NeeTrace {
+    std::vector<NeeRecord>* records = nullptr;
+    int firstLight = -1;
+};
+
 class PathTracer {
 public:
-    PathTracer(const Scene& scene, const Accel& accel, const LightSampler& lights)
-        : scene_(scene), accel_(accel), lights_(lights) {}
+    // selector: light selection for NEE; nullptr (or power mode) picks lights by power.
+    PathTracer(const Scene& scene, const Accel& accel, const LightSampler& lights,
+               const LightSelector* selector = nullptr)
+        : scene_(scene), accel_(accel), lights_(lights),
+          selector_(selector && selector->mode() != NeeMode::Power ? selector : nullptr) {}
+
+    const LightSelector* selector() const { return selector_; }
 
     // One estimate of the radiance arriving at `origin` from direction `direction` (i.e. leaving the
     // first surface hit towards origin). maxDepth counts path segments including this first ray.
     // If `record` is given, every ray traced is appended to it (benchmarks).
     glm::vec3 radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth, RayCounters& counters,
-                       std::vector<RecordedRay>* record = nullptr) const;
+                       std::vector<RecordedRay>* record = nullptr, NeeTrace* nee = nullptr) const;
 
     // One estimate of L(x, wo) at an existing surface interaction (emission included), with the same
     // integrator; si counts as reached by one segment, so maxDepth means the same as for camera paths.
-    glm::vec3 outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth, RayCounters& counters) const;
+    glm::vec3 outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth, RayCounters& counters,
+                               NeeTrace* nee = nullptr) const;
 
     // Renders an image; progress(fraction) is called from worker threads as tiles finish.
     Image render(const Camera& camera, const RenderSettings& settings, RenderStats* stats = nullptr,
@@ -77,11 +92,12 @@ public:
 
 private:
     glm::vec3 trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
-                    std::vector<RecordedRay>* record) const;
+                    std::vector<RecordedRay>* record, NeeTrace* nee) const;
 
     const Scene& scene_;
     const Accel& accel_;
     const LightSampler& lights_;
+    const LightSelector* selector_;
 };
 
 }  // namespace nrad

@@ -1,0 +1,119 @@
+// Light selection for next event estimation (paper Sec. 4): which light group the path tracer samples at a
+// vertex. Three modes:
+//   power    every light entry in proportion to its emitted power (LightSampler::sample; the default),
+//   uniform  every light group with the same probability (the paper's baseline),
+//   learned  a network per scene, 9 inputs (position normalised to the scene bounds, shading normal,
+//            direction the path arrived along), two hidden layers of 64 ReLU units, a softmax over the light
+//            groups, trained online on the contributions the renderer observes (visibility included).
+// The learned distribution is restricted to the groups that can contribute at all (LightSampler::
+// groupCanContribute) and mixed with a uniform share over them, so every light that can contribute keeps a
+// probability of at least mix / candidates: estimates divide by the probability actually used and stay
+// unbiased. Where at most one group can contribute, the network is not evaluated.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "baker/render/light_sampler.h"
+#include "baker/scene/scene.h"
+#include "baker/util/optim.h"
+
+namespace nrad {
+
+enum class NeeMode { Power, Uniform, Learned };
+
+const char* neeModeName(NeeMode mode);
+
+struct NeeSettings {
+    NeeMode mode = NeeMode::Power;
+    float mix = 0.05f;  // learned: share of the uniform distribution over the candidate groups, in (0, 1]
+    int batchesPerRound = 4;  // mini-batches of 64 paths rendered between two training steps
+    int trainBatches = 1;  // mini-batches of 64 recorded contributions per training step (Adam steps)
+    int networkVertices = 0;  // path vertices (from the first) that evaluate the network; later ones choose
+                              // uniformly among the candidate groups (cost control); 0 = every vertex
+    float learningRate = 1e-2f;
+    uint32_t seed = 0;  // initial weights
+    bool train = true;  // false: keep the current weights (e.g. after a warm-up)
+};
+
+constexpr int kNeeInputs = 9;
+constexpr int kNeeHidden = 64;
+
+// One network evaluation's input and what came of it: the training data.
+struct NeeRecord {
+    float input[kNeeInputs];
+    uint64_t candidates;  // groups the softmax ranged over (bit g)
+    uint32_t light;  // group chosen
+    float weight;  // luminance of the unoccluded contribution / probability of the choice (> 0)
+};
+
+// 9 -> 64 -> 64 -> K, ReLU, logits out. Weights stored input-major (W[i][o]) so that every layer is a sum of
+// scaled rows, which vectorises over the outputs; the output rows are padded with zeros to a width of 16, 32
+// or 64.
+class NeeNetwork {
+public:
+    NeeNetwork(int outputs, uint64_t seed);
+    int outputs() const { return outputs_; }
+    std::vector<float>& parameters() { return params_; }
+    const std::vector<float>& parameters() const { return params_; }
+
+    struct Activations {
+        float h1[kNeeHidden], h2[kNeeHidden], logits[LightSampler::kMaxLightGroups];
+    };
+    void forward(const float* x, Activations& a) const;
+    // Adds dLoss/dParams to grad for one input, given dLoss/dLogits; a from forward(x).
+    void backward(const float* x, const Activations& a, const float* dLogits, float* grad) const;
+
+private:
+    size_t w3() const { return size_t(kNeeInputs) * kNeeHidden + kNeeHidden + size_t(kNeeHidden) * kNeeHidden + kNeeHidden; }
+    size_t b3() const { return w3() + size_t(kNeeHidden) * size_t(padded_); }
+
+    int outputs_;
+    int padded_;  // output rows padded to 16, 32 or 64 (zeros) so the output layer has a fixed width
+    std::vector<float> params_;
+};
+
+class LightSelector {
+public:
+    LightSelector(const LightSampler& lights, const Bounds3& sceneBounds, const NeeSettings& settings);
+
+    NeeMode mode() const { return settings_.mode; }
+    const NeeSettings& settings() const { return settings_; }
+    size_t groupCount() const { return lights_.groupCount(); }
+    const LightSampler& lights() const { return lights_; }
+
+    // Selection probability of every group at a vertex (p, geometric normal ng and shading normal ns on the
+    // side of wo) into probs[0, groupCount). Returns true if the network was evaluated; then `record` (if
+    // given) holds its input and candidates for the caller to complete.
+    // depth: the vertex's index along the path (0 = first hit).
+    bool distribution(const glm::vec3& p, const glm::vec3& ng, const glm::vec3& ns, const glm::vec3& wo, int depth,
+                      float* probs, NeeRecord* record) const;
+
+    // One training step on a round's records (learned mode with train = true; otherwise nothing). Records
+    // with zero weight carry no gradient and are skipped; at most trainBatches x 64 are used, spread evenly.
+    void train(const std::vector<NeeRecord>& records);
+
+    // The network's own (unmixed) softmax over the candidate groups at a vertex, for tests and pictures.
+    void networkDistribution(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo, uint64_t candidates,
+                             float* probs) const;
+    uint64_t candidates(const glm::vec3& p, const glm::vec3& ng) const;
+
+    const NeeNetwork& network() const { return network_; }
+    uint64_t trainingSteps() const { return steps_; }
+    uint64_t rejectedSteps() const { return rejectedSteps_; }  // steps undone because weights went non-finite
+    void setTraining(bool on) { settings_.train = on; }
+
+private:
+    void input(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo, float* x) const;
+
+    const LightSampler& lights_;
+    NeeSettings settings_;
+    glm::vec3 boundsCenter_{0.0f}, boundsScale_{1.0f};
+    NeeNetwork network_;
+    Adam adam_;
+    uint64_t steps_ = 0, rejectedSteps_ = 0;
+};
+
+}  // namespace nrad
