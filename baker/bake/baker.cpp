@@ -55,7 +55,10 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     auto t0 = std::chrono::steady_clock::now();
     Accel accel(scene.mesh);
     LightSampler lights(scene);
-    PathTracer tracer(scene, accel, lights);
+    NeeSettings nee = settings.nee;
+    nee.seed ^= settings.samples.seed;
+    LightSelector selector(lights, scene.bounds, nee);
+    PathTracer tracer(scene, accel, lights, &selector);
     VoxelGrid grid(scene.bounds, settings.grid);
     SurfacePieces pieces(scene.mesh, grid);
     result.surfaceArea = pieces.totalArea();
@@ -63,7 +66,8 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
 
     auto t1 = std::chrono::steady_clock::now();
     std::vector<TrainingSample> samples =
-        generateTrainingSamples(scene, tracer, grid, pieces, settings.samples, result.sampleStats, progress.sampling);
+        generateTrainingSamples(scene, tracer, grid, pieces, settings.samples, result.sampleStats, progress.sampling,
+                                &selector);
     result.sampleCount = samples.size();
     result.timings.sampling = since(t1);
 
@@ -111,6 +115,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"points", s.points},
                  {"paths", s.paths},
                  {"max_depth", s.maxDepth},
+                 {"nee", neeModeName(settings.nee.mode)},
                  {"seed", s.seed},
                  {"min_samples_per_voxel", s.minSamplesPerVoxel},
                  {"hidden", t.shape.hidden},

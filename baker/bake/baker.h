@@ -19,6 +19,7 @@ struct BakeSettings {
     SampleSettings samples;
     TrainSettings train;
     format::WeightEncoding encoding = format::WeightEncoding::Float16;
+    NeeSettings nee;  // light selection of the training paths (learned: trained on warm-up paths first)
     bool metadata = true;
 };
 

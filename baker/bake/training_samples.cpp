@@ -8,6 +8,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "baker/render/online_render.h"
 #include "baker/render/surface.h"
 
 namespace nrad {
@@ -20,6 +21,7 @@ constexpr float kPi = 3.14159265358979323846f;
 constexpr uint32_t kPointStream = 0x706f696eu;  // "poin"
 constexpr uint32_t kFloorStream = 0x666c6f6fu;  // "floo"
 constexpr uint32_t kPathStream = 0x70617468u;  // "path"
+constexpr uint32_t kWarmupStream = 0x6e656521u;  // "nee!"
 
 size_t pickByCdf(const std::vector<double>& cdf, double u) {
     size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), u * cdf.back()) - cdf.begin());
@@ -37,7 +39,8 @@ struct PointRequest {
 
 std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
-                                                    SampleStats& stats, const std::function<void(double)>& progress) {
+                                                    SampleStats& stats, const std::function<void(double)>& progress,
+                                                    LightSelector* trainee) {
     stats = SampleStats{};
     stats.perVoxel.assign(grid.voxelCount(), 0);
     std::vector<TrainingSample> samples;
@@ -77,6 +80,49 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         }
     }
 
+    // The point, its outgoing direction and the interaction the paths start from.
+    auto startOf = [&](const PointRequest& r, glm::vec3& p, glm::vec3& wo) {
+        const SurfacePiece& piece = pieces.pieces()[r.piece];
+        float b1, b2;
+        p = pieces.samplePiece(piece, r.uPoint, b1, b2);
+        // The hemisphere around the winding-side shading normal at the point.
+        const glm::uvec3& tri = scene.mesh.triangles[piece.triangle];
+        glm::vec3 ng = scene.mesh.geometricNormal(piece.triangle);
+        glm::vec3 n = (1.0f - b1 - b2) * scene.mesh.normals[tri.x] + b1 * scene.mesh.normals[tri.y] + b2 * scene.mesh.normals[tri.z];
+        float nl = glm::length(n);
+        n = (nl > 1e-6f && std::isfinite(nl)) ? n / nl : ng;
+        if (glm::dot(n, ng) < 0.0f) n = -n;
+        float z = r.uDirection.x, rad = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 2.0f * kPi * r.uDirection.y;
+        Frame frame = Frame::fromNormal(n);
+        wo = glm::normalize(frame.toWorld(glm::vec3(rad * std::cos(phi), rad * std::sin(phi), z)));
+        Hit hit;
+        hit.t = 0.0f;
+        hit.triangle = piece.triangle;
+        hit.u = b1;
+        hit.v = b2;
+        SurfaceInteraction si = makeInteraction(scene, hit, -wo);
+        si.p = p;  // the exact sampled point (inside its voxel)
+        return si;
+    };
+
+    // Learned light selection: train the network on paths from these points first, then keep it fixed.
+    if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty()) {
+        const uint64_t n = requests.size();
+        WarmupStats w = trainSelectorOnPaths(tracer, *trainee, settings.neeWarmupPaths, settings.maxDepth,
+                                             [&](uint64_t k, uint32_t& stream, uint32_t& index) {
+                                                 const PointRequest& r = requests[size_t(k % n)];
+                                                 stream = hashCombine(r.pathStream, kWarmupStream);
+                                                 index = uint32_t(k / n);
+                                                 glm::vec3 p, wo;
+                                                 return startOf(r, p, wo);
+                                             });
+        trainee->setTraining(false);
+        stats.neeWarmupPaths = w.paths;
+        stats.neeTrainingSteps = w.trainingSteps;
+        stats.neeWarmupSeconds = w.seconds;
+        stats.rays += w.rays;
+    }
+
     std::vector<TrainingSample> out(requests.size());
     std::vector<uint8_t> valid(requests.size(), 0);
     std::atomic<size_t> done{0};
@@ -87,25 +133,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const PointRequest& r = requests[i];
             const SurfacePiece& piece = pieces.pieces()[r.piece];
-            float b1, b2;
-            glm::vec3 p = pieces.samplePiece(piece, r.uPoint, b1, b2);
-            // The hemisphere around the winding-side shading normal at the point.
-            const glm::uvec3& tri = scene.mesh.triangles[piece.triangle];
-            glm::vec3 ng = scene.mesh.geometricNormal(piece.triangle);
-            glm::vec3 n = (1.0f - b1 - b2) * scene.mesh.normals[tri.x] + b1 * scene.mesh.normals[tri.y] + b2 * scene.mesh.normals[tri.z];
-            float nl = glm::length(n);
-            n = (nl > 1e-6f && std::isfinite(nl)) ? n / nl : ng;
-            if (glm::dot(n, ng) < 0.0f) n = -n;
-            float z = r.uDirection.x, rad = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 2.0f * kPi * r.uDirection.y;
-            Frame frame = Frame::fromNormal(n);
-            glm::vec3 wo = glm::normalize(frame.toWorld(glm::vec3(rad * std::cos(phi), rad * std::sin(phi), z)));
-            Hit hit;
-            hit.t = 0.0f;
-            hit.triangle = piece.triangle;
-            hit.u = b1;
-            hit.v = b2;
-            SurfaceInteraction si = makeInteraction(scene, hit, -wo);
-            si.p = p;  // the exact sampled point (inside its voxel)
+            glm::vec3 p, wo;
+            SurfaceInteraction si = startOf(r, p, wo);
             glm::dvec3 sum(0.0);
             uint32_t finite = 0;
             for (uint32_t j = 0; j < settings.paths; ++j) {

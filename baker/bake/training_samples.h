@@ -29,6 +29,10 @@ struct SampleSettings {
     int maxDepth = 6;  // segments, counting the (virtual) one that reached the point; 0 = unbounded
     uint32_t seed = 0;
     uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area
+    // Learned light selection (the tracer's selector in learned mode): paths traced from the training points,
+    // before the samples, to train the selection network, which then stays fixed (so samples can be traced
+    // in any order). Their estimates are not used.
+    uint64_t neeWarmupPaths = 262144;
 };
 
 struct SampleStats {
@@ -38,11 +42,15 @@ struct SampleStats {
     uint64_t droppedSamples = 0;  // points whose every path estimate was non-finite
     RayCounters rays;
     std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
+    uint64_t neeWarmupPaths = 0, neeTrainingSteps = 0;
+    double neeWarmupSeconds = 0.0;
 };
 
+// trainee: the tracer's light selector if it is to be trained (learned mode), else nullptr.
 std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
                                                     SampleStats& stats,
-                                                    const std::function<void(double)>& progress = {});
+                                                    const std::function<void(double)>& progress = {},
+                                                    LightSelector* trainee = nullptr);
 
 }  // namespace nrad

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -22,6 +23,7 @@ struct BakeOptions {
     std::string scene, output, config, stats;
     std::string grid = "3", hidden = "9", loss = "log-l2", encoding = "fp16";
     uint32_t points = 10000, paths = 512, seed = 0, minSamples = 64;
+    NeeMode nee = NeeMode::Power;
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
     float learningRate = 0.01f;
     bool quiet = false, noMetadata = false;
@@ -117,6 +119,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         return usage("--points, --paths, --epochs, --batch-size and --learning-rate must be positive, --max-depth >= 0");
     s.samples.points = o.points;
     s.samples.paths = o.paths;
+    s.nee.mode = o.nee;
     s.samples.maxDepth = o.maxDepth;
     s.samples.seed = o.seed;
     s.samples.minSamplesPerVoxel = o.minSamples;
@@ -179,6 +182,10 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         j["floor_samples"] = r.sampleStats.floorPoints;
         j["dropped_samples"] = r.sampleStats.droppedSamples;
         j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
+        j["nee"] = {{"mode", neeModeName(o.nee)},
+                    {"warmup_paths", r.sampleStats.neeWarmupPaths},
+                    {"training_steps", r.sampleStats.neeTrainingSteps},
+                    {"warmup_seconds", r.sampleStats.neeWarmupSeconds}};
         j["rays"] = r.sampleStats.rays.total();
         j["surface_area"] = r.surfaceArea;
         j["held_out_relmse"] = {{"mean", meanErr}, {"worst", worstErr}, {"worst_voxel", worstVoxel}};
@@ -216,6 +223,13 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--grid", o->grid, "Voxel grid: N (cubic) or NxMxK (default 3)");
     cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 10000)");
     cmd->add_option("--paths", o->paths, "Paths per training sample (default 512)");
+    cmd->add_option("--nee", o->nee,
+                    "Light selection of the training paths: power (default), uniform, or learned (a selection network "
+                    "trained on warm-up paths from the training points first)")
+        ->transform(CLI::CheckedTransformer(
+            std::map<std::string, NeeMode>{{"power", NeeMode::Power}, {"uniform", NeeMode::Uniform},
+                                           {"learned", NeeMode::Learned}},
+            CLI::ignore_case));
     cmd->add_option("--max-depth", o->maxDepth, "Path length in segments for training radiance; 0 = unbounded (default 6)");
     cmd->add_option("--hidden", o->hidden, "Hidden layer widths, comma-separated (default 9)");
     cmd->add_option("--epochs", o->epochs, "Maximum training epochs per voxel (default 1500)");

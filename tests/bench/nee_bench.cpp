@@ -53,8 +53,9 @@ int main(int argc, char** argv) {
     std::string scenePath = std::string(NRAD_SOURCE_DIR) + "/scenes/split-rooms/split-rooms.gltf";
     std::string outDir = "nee-bench";
     int width = 256, maxSpp = 32, refSpp = 4096, maxDepth = 0;
-    float mix = 0.1f;
-    int networkVertices = 1, trainBatches = 1;
+    const NeeSettings defaults;
+    float mix = defaults.mix;
+    int networkVertices = defaults.networkVertices, trainBatches = defaults.trainBatches;
     for (int i = 1; i < argc; ++i) {
         auto next = [&]() { return i + 1 < argc ? argv[++i] : (std::fprintf(stderr, "missing value\n"), std::exit(2), nullptr); };
         if (!std::strcmp(argv[i], "--width")) width = std::atoi(next());
