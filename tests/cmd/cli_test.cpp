@@ -323,3 +323,28 @@ TEST(CliValidate, BadInputsExitWithTheirCodes) {
 
 }  // namespace
 }  // namespace nrad
+
+namespace nrad {
+namespace {
+
+TEST(CliRender, LearnedLightSelectionWritesTheImageAndTheChosenLights) {
+    std::string dir = test::temporaryDirectory();
+    std::string scene = "'" + test::sourcePath("scenes/split-rooms/split-rooms.gltf") + "'";
+    RunResult r = run("render " + scene + " --nee learned --spp 4 --width 32 -o '" + dir + "/l.exr' --chosen-light '" +
+                      dir + "/c.exr' -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("light selection learned over 8 lights"), std::string::npos) << r.output;
+    Image img = readExr(dir + "/l.exr"), chosen = readExr(dir + "/c.exr");
+    EXPECT_GT(img.mean().x, 0.0);
+    // Every pixel that sees a room interior chose a light; colours come from a palette of saturated hues.
+    size_t coloured = 0;
+    for (const glm::vec3& p : chosen.pixels) coloured += (p.x + p.y + p.z) > 0.5f;
+    EXPECT_GT(coloured, chosen.pixels.size() / 2);
+    EXPECT_EQ(run("render " + scene + " --nee sometimes -o '" + dir + "/x.exr' -q").exitCode, 2);  // usage
+    EXPECT_EQ(run("render " + scene + " --nee learned --chosen-light '" + dir + "/x.bmp' -o '" + dir + "/x.exr' -q").exitCode,
+              2);
+    EXPECT_FALSE(std::filesystem::exists(dir + "/x.exr"));
+}
+
+}  // namespace
+}  // namespace nrad
