@@ -37,7 +37,8 @@ struct RenderOptions {
     float exposure = 0.0f;
     bool quiet = false;
     NeeMode nee = NeeMode::Power;
-    float neeMix = 0.1f;
+    float neeMix = NeeSettings{}.mix;
+    uint64_t neeWarmup = NeeSettings{}.warmupPaths;
     std::string chosenLight;
 };
 
@@ -114,6 +115,7 @@ int runRender(const RenderOptions& o) {
     NeeSettings nee;
     nee.mode = o.nee;
     nee.mix = o.neeMix;
+    nee.warmupPaths = o.neeWarmup;
     nee.seed = o.seed;
     LightSelector selector(lights, scene.bounds, nee);
     PathTracer tracer(scene, accel, lights, &selector);
@@ -129,9 +131,10 @@ int runRender(const RenderOptions& o) {
         image = std::move(r.image);
         stats = r.stats.render;
         char buf[256];
-        std::snprintf(buf, sizeof buf, ", light selection %s over %zu lights (%llu training steps, %.2f s)",
-                      neeModeName(o.nee), lights.groupCount(), (unsigned long long)r.stats.trainingSteps,
-                      r.stats.trainingSeconds);
+        std::snprintf(buf, sizeof buf,
+                      ", light selection %s over %zu lights (%llu warm-up paths, %llu training steps, %.2f s)",
+                      neeModeName(o.nee), lights.groupCount(), (unsigned long long)r.stats.warmupPaths,
+                      (unsigned long long)r.stats.trainingSteps, r.stats.trainingSeconds);
         neeSummary = buf;
         if (!o.chosenLight.empty()) {
             Image chosen(settings.width, settings.height);
@@ -187,8 +190,13 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                                            {"learned", NeeMode::Learned}},
             CLI::ignore_case));
     cmd->add_option("--nee-mix", opts->neeMix,
-                    "Learned selection: share of the uniform choice among the lights that can contribute (default 0.1)")
+                    "Learned selection: share of the uniform choice among the lights that can contribute (default 0.05)")
         ->check(CLI::Range(0.001f, 1.0f));
+    cmd->add_option("--nee-warmup", opts->neeWarmup,
+                    "Learned selection: camera paths that train the network before the image, which then renders "
+                    "with it fixed (default 131072); 0 = train throughout the render and keep every sample (the "
+                    "paper's variant)")
+        ->check(CLI::Range(uint64_t(0), uint64_t(1) << 32));
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");

@@ -70,17 +70,28 @@ float LightSampler::pickProbability(size_t i) const {
     return float(cdf_[i] - (i > 0 ? cdf_[i - 1] : 0.0));
 }
 
-LightSample LightSampler::sample(const glm::vec3& p, float uPick, const glm::vec2& u) const {
+namespace {
+// Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
+// pick sample is reused as the first coordinate of the point on the light, so a stratified pick dimension
+// also stratifies the points within each light.
+size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
+    size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), double(u)) - cdf.begin());
+    i = std::min(i, cdf.size() - 1);
+    double lo = i > 0 ? cdf[i - 1] : 0.0, width = cdf[i] - lo;
+    u = width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
+    return i;
+}
+}  // namespace
+
+LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (lights_.empty()) return LightSample{};
-    size_t i = size_t(std::upper_bound(cdf_.begin(), cdf_.end(), double(uPick)) - cdf_.begin());
-    i = std::min(i, lights_.size() - 1);
+    size_t i = pickAndRemap(cdf_, u.x);
     return sampleEntry(i, pickProbability(i), p, u);
 }
 
-LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, float uPick, const glm::vec2& u) const {
+LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const {
     const Group& group = groups_[g];
-    size_t k = size_t(std::upper_bound(group.cdf.begin(), group.cdf.end(), double(uPick)) - group.cdf.begin());
-    k = std::min(k, group.entries.size() - 1);
+    size_t k = pickAndRemap(group.cdf, u.x);
     size_t i = group.entries[k];
     return sampleEntry(i, pickInGroup_[i], p, u);
 }

@@ -35,8 +35,9 @@ public:
     size_t lightCount() const { return lights_.size(); }
     double totalPower() const { return totalPower_; }
 
-    // uPick chooses the light, u the point on it.
-    LightSample sample(const glm::vec3& p, float uPick, const glm::vec2& u) const;
+    // u.x chooses the light and, rescaled within the light's share, is the point's first coordinate; u.y is
+    // its second. A stratified u.x thus stratifies the points on each light as well.
+    LightSample sample(const glm::vec3& p, glm::vec2 u) const;
 
     // Solid-angle pdf with which sample() produces point pLight (with normal nLight) on emissive
     // triangle `triangle`, seen from p. Zero for triangles that are not lights.
@@ -57,9 +58,9 @@ public:
     // normal ng (towards the side light may arrive from)? False only when the whole group lies behind the
     // tangent plane or p lies behind every emitting side of a one-sided planar group.
     bool groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const;
-    // Samples a point of group g (entry by power within the group, uPick reused); the pdf does not include
-    // the probability of having chosen the group.
-    LightSample sampleGroup(size_t g, const glm::vec3& p, float uPick, const glm::vec2& u) const;
+    // Samples a point of group g (entry by power within the group, u.x reused as in sample()); the pdf does
+    // not include the probability of having chosen the group.
+    LightSample sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const;
     // Solid-angle pdf of sampleGroup() producing the given emitter point, without the group probability.
     float pdfTriangleInGroup(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
 

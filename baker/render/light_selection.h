@@ -33,6 +33,11 @@ struct NeeSettings {
     int trainBatches = 1;  // mini-batches of 64 recorded contributions per training step (Adam steps)
     int networkVertices = 0;  // path vertices (from the first) that evaluate the network; later ones choose
                               // uniformly among the candidate groups (cost control); 0 = every vertex
+    // renderOnline, learned mode: camera paths traced before the image to train the network (not kept in the
+    // image; their time counts); the network is then frozen for the whole image, so every pixel's samples
+    // see one distribution and its stratified pick dimension stays stratified over the lights. 0 = the
+    // paper's variant: train between rounds throughout the render and keep every sample.
+    uint64_t warmupPaths = uint64_t(1) << 17;
     float learningRate = 1e-2f;
     uint32_t seed = 0;  // initial weights
     bool train = true;  // false: keep the current weights (e.g. after a warm-up)

@@ -16,24 +16,27 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// Runs paths [begin, end) in mini-batches of 64 in parallel; per mini-batch records and counters are kept
-// apart and merged in mini-batch order, so the result does not depend on the threads.
+// Runs paths [begin, end) in mini-batches of 64 in parallel; per mini-batch records (if wanted) and counters
+// are kept apart and merged in mini-batch order, so the result does not depend on the threads.
 template <typename PathFn>
-void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>& records, RayCounters& counters, PathFn&& path) {
+void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>* records, RayCounters& counters, PathFn&& path) {
     const uint64_t batches = (end - begin + 63) / 64;
-    std::vector<std::vector<NeeRecord>> batchRecords(batches);
+    std::vector<std::vector<NeeRecord>> batchRecords(records ? batches : 0);
     std::vector<RayCounters> batchCounters(batches);
     tbb::parallel_for(uint64_t(0), batches, [&](uint64_t b) {
         NeeTrace nee;
-        nee.records = &batchRecords[b];
+        nee.records = records ? &batchRecords[b] : nullptr;
         for (uint64_t k = begin + b * 64; k < std::min(end, begin + (b + 1) * 64); ++k) path(k, nee, batchCounters[b]);
     });
-    records.clear();
-    for (uint64_t b = 0; b < batches; ++b) {
-        records.insert(records.end(), batchRecords[b].begin(), batchRecords[b].end());
-        counters += batchCounters[b];
+    if (records) {
+        records->clear();
+        for (uint64_t b = 0; b < batches; ++b) records->insert(records->end(), batchRecords[b].begin(), batchRecords[b].end());
     }
+    for (uint64_t b = 0; b < batches; ++b) counters += batchCounters[b];
 }
+
+// Sampler seed of the warm-up paths (distinct from the image's streams).
+constexpr uint32_t kWarmupSeed = 0x7761726du;  // "warm"
 
 bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
@@ -68,16 +71,50 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
     SplitMix64 rng(0x6f6e6c696e65ull ^ settings.seed);
     for (uint64_t i = P; i > 1; --i) std::swap(order[i - 1], order[rng.below(i)]);
 
-    const bool learning = trainee && trainee->mode() == NeeMode::Learned;
+    const bool learning = trainee && trainee->mode() == NeeMode::Learned && trainee->settings().train;
     const uint64_t roundSize = uint64_t(trainee ? trainee->settings().batchesPerRound : 16) * 64;
     std::vector<NeeRecord> records;
     RayCounters counters;
+    auto train = [&]() {
+        auto t = Clock::now();
+        trainee->train(records);
+        result.stats.trainingSeconds += since(t);
+    };
+
+    // Warm-up: camera paths with their own sampler streams, in training rounds; the image keeps nothing.
+    if (learning && trainee->settings().warmupPaths > 0) {
+        const uint64_t paths = trainee->settings().warmupPaths;
+        RayCounters warmupRays;
+        for (uint64_t begin = 0; begin < paths; begin += roundSize) {
+            runRound(begin, std::min(paths, begin + roundSize), &records, warmupRays,
+                     [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
+                         uint32_t pixel = order[k % P];
+                         int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
+                         Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed ^ kWarmupSeed),
+                                         uint32_t(k / P));
+                         glm::vec2 jitter = sampler.get2D();
+                         glm::vec3 o, d;
+                         rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                         tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
+                     });
+            ++result.stats.rounds;
+            result.stats.records += records.size();
+            train();
+        }
+        trainee->setTraining(false);
+        result.stats.warmupPaths = paths;
+        result.stats.warmupSeconds = since(start);
+    }
+
+    // The image: in training rounds while the network learns, else a whole pass at a time.
+    const bool online = learning && trainee->settings().train;
+    const uint64_t passRound = online ? roundSize : P;
     uint64_t nonFinite = 0;
     std::vector<uint8_t> bad(P, 0);
     for (int s = 0; s < spp; ++s) {
-        for (uint64_t begin = 0; begin < P; begin += roundSize) {
-            uint64_t end = std::min(P, begin + roundSize);
-            runRound(begin, end, records, counters, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
+        for (uint64_t begin = 0; begin < P; begin += passRound) {
+            uint64_t end = std::min(P, begin + passRound);
+            runRound(begin, end, online ? &records : nullptr, counters, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
                 uint32_t pixel = order[k];
                 int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
                 Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed), uint32_t(s));
@@ -92,12 +129,10 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
                     bad[pixel] = 1;
                 result.firstLight[pixel] = nee.firstLight;
             });
-            ++result.stats.rounds;
-            result.stats.records += records.size();
-            if (learning) {
-                auto t = Clock::now();
-                trainee->train(records);
-                result.stats.trainingSeconds += since(t);
+            if (online) {
+                ++result.stats.rounds;
+                result.stats.records += records.size();
+                train();
             }
         }
         for (uint64_t i = 0; i < P; ++i) {
@@ -133,7 +168,7 @@ WarmupStats trainSelectorOnPaths(const PathTracer& tracer, LightSelector& traine
     uint64_t steps0 = trainee.trainingSteps();
     for (uint64_t begin = 0; begin < paths; begin += roundSize) {
         uint64_t end = std::min(paths, begin + roundSize);
-        runRound(begin, end, records, stats.rays, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
+        runRound(begin, end, &records, stats.rays, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
             uint32_t stream = 0, index = 0;
             SurfaceInteraction si = start(k, stream, index);
             Sampler sampler(stream, index);

@@ -1,9 +1,16 @@
-// Online rendering (paper Sec. 4, Fig. "renderImage"): the image is rendered in rounds of
-// batchesPerRound x 64 path samples; between rounds the light-selection network takes a training step on
-// the contributions the round recorded. Samples visit the pixels in a fixed shuffled order, one pass of
-// every pixel per sample per pixel, so snapshots at 1, 2, 4, ... spp are exactly what a run with that many
-// samples gives. Every sample uses the same sampler (pixel, sample index, seed) as PathTracer::render, and
-// the network only changes between rounds in a fixed order: the image is byte-identical for any number of
+// Online rendering (paper Sec. 4, Fig. "renderImage"). Training happens in rounds of batchesPerRound x 64
+// path samples; between rounds the light-selection network takes a training step on the contributions the
+// round recorded. Paths visit the pixels in a fixed shuffled order, one pass of every pixel per sample per
+// pixel, so snapshots at 1, 2, 4, ... spp are exactly what a run with that many samples gives.
+//
+// Learned mode with NeeSettings::warmupPaths > 0 (the default): the rounds first trace that many camera
+// paths (their own sampler streams) only to train the network, which is then frozen and the image rendered
+// pass by pass. With warmupPaths = 0 (the paper's variant) the image itself is rendered in training rounds
+// and keeps every sample; the distribution then changes between a pixel's samples, which costs the pick
+// dimension its per-pixel stratification (docs/results.md measures both).
+//
+// Every image sample uses the same sampler (pixel, sample index, seed) as PathTracer::render, and the
+// network only changes between rounds in a fixed order: the image is byte-identical for any number of
 // threads.
 #pragma once
 
@@ -24,8 +31,10 @@ struct OnlineSnapshot {
 };
 
 struct OnlineRenderStats {
-    RenderStats render;  // seconds = whole render incl. training
-    double trainingSeconds = 0.0;
+    RenderStats render;  // seconds = whole render incl. warm-up and training; rays and samples: the image's
+    double trainingSeconds = 0.0;  // Adam steps (warm-up included)
+    double warmupSeconds = 0.0;  // warm-up paths and their training
+    uint64_t warmupPaths = 0;
     uint64_t rounds = 0;
     uint64_t records = 0;  // contributions recorded for training
     uint64_t trainingSteps = 0;
@@ -38,7 +47,8 @@ struct OnlineRenderResult {
     OnlineRenderStats stats;
 };
 
-// Renders with `tracer` (whose selector may be `trainee`, trained between rounds when in learned mode).
+// Renders with `tracer` (whose selector may be `trainee`, trained in learned mode; after a warm-up the
+// trainee is left frozen: settings().train = false).
 // snapshotSpp: sample counts at which to keep a copy of the image (and the time it took).
 OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee, const Camera& camera,
                                 const RenderSettings& settings, const std::vector<int>& snapshotSpp = {},

@@ -75,11 +75,13 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
 
         Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
         // The sampler's dimensions are consumed in the same order at every vertex.
-        glm::vec2 uPickLobe = sampler.get2D();  // light pick, BSDF lobe choice
+        // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
+        // the chosen light's probability, is reused as the point's first coordinate, so the samples that
+        // choose a light are stratified over it (in every selection mode).
         glm::vec2 uLight = sampler.get2D();
         glm::vec2 uBsdf = sampler.get2D();
-        float uRoulette = sampler.get1D();
-        float uPick = uPickLobe.x, uLobe = uPickLobe.y;
+        glm::vec2 uLobeRoulette = sampler.get2D();  // BSDF lobe choice, Russian roulette
+        float uPick = uLight.x, uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
 
         // Next event estimation.
         NeeRecord neeRecord;
@@ -100,12 +102,12 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
             if (chosen >= 0) {
                 float p = probs[chosen];
                 float uIn = std::clamp((uPick - before) / p, 0.0f, 0x1.fffffep-1f);
-                ls = lights_.sampleGroup(size_t(chosen), si.p, uIn, uLight);
+                ls = lights_.sampleGroup(size_t(chosen), si.p, glm::vec2(uIn, uLight.y));
                 ls.pdf *= p;
             }
             if (depth == 0 && nee) nee->firstLight = chosen;
         } else if (!lights_.empty()) {
-            ls = lights_.sample(si.p, uPick, uLight);
+            ls = lights_.sample(si.p, uLight);
         }
         {
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {

@@ -8,8 +8,14 @@
 // chosen at each pixel's first hit. All modes run through the same round-based renderer in one process.
 //
 // Usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] [--mix M]
-//                  [--network-vertices N] [--train-batches N] [--out DIR]
+//                  [--network-vertices N] [--train-batches N] [--warmup PATHS] [--out DIR]
+//
+// Modes: uniform, power, learned (warm-up of --warmup camera paths, then the network frozen for the image;
+// the default), learned-online (the paper's variant: trained between rounds throughout, every sample kept),
+// candidates-only (uniform over the groups that pass the geometric test; no network).
+#include <algorithm>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -41,10 +47,26 @@ double rmse255(const Image& a, const Image& ref) {
     return 255.0 * std::sqrt(s / double(3 * a.pixels.size()));
 }
 
+// Share of the squared error held by the worst 0.1% of pixels: near 1 means a few outliers decide the RMSE.
+double worstShare(const Image& a, const Image& ref) {
+    std::vector<double> e(a.pixels.size());
+    double total = 0.0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+        glm::vec3 d = a.pixels[i] - ref.pixels[i];
+        e[i] = double(glm::dot(d, d));
+        total += e[i];
+    }
+    size_t k = std::max<size_t>(1, e.size() / 1000);
+    std::partial_sort(e.begin(), e.begin() + k, e.end(), std::greater<double>());
+    double worst = 0.0;
+    for (size_t i = 0; i < k; ++i) worst += e[i];
+    return total > 0.0 ? worst / total : 0.0;
+}
+
 struct Row {
     std::string mode;
     int spp;
-    double rmse, rmse255, seconds, trainingSeconds;
+    double rmse, rmse255, seconds, trainingSeconds, worst;
 };
 
 }  // namespace
@@ -56,6 +78,7 @@ int main(int argc, char** argv) {
     const NeeSettings defaults;
     float mix = defaults.mix;
     int networkVertices = defaults.networkVertices, trainBatches = defaults.trainBatches;
+    uint64_t warmup = defaults.warmupPaths;
     for (int i = 1; i < argc; ++i) {
         auto next = [&]() { return i + 1 < argc ? argv[++i] : (std::fprintf(stderr, "missing value\n"), std::exit(2), nullptr); };
         if (!std::strcmp(argv[i], "--width")) width = std::atoi(next());
@@ -66,10 +89,11 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--out")) outDir = next();
         else if (!std::strcmp(argv[i], "--network-vertices")) networkVertices = std::atoi(next());
         else if (!std::strcmp(argv[i], "--train-batches")) trainBatches = std::atoi(next());
+        else if (!std::strcmp(argv[i], "--warmup")) warmup = std::strtoull(next(), nullptr, 10);
         else if (argv[i][0] != '-') scenePath = argv[i];
         else {
             std::fprintf(stderr, "usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] "
-                                 "[--mix M] [--network-vertices N] [--train-batches N] [--out DIR]\n");
+                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup PATHS] [--out DIR]\n");
             return 2;
         }
     }
@@ -129,44 +153,52 @@ int main(int argc, char** argv) {
         const char* name;
         NeeMode mode;
         float mix;
+        uint64_t warmup;
     };
-    const ModeRun runs[] = {{"uniform", NeeMode::Uniform, mix},
-                            {"power", NeeMode::Power, mix},
-                            {"learned", NeeMode::Learned, mix},
-                            {"candidates-only", NeeMode::Learned, 1.0f}};  // learned with mix 1: no network
+    const ModeRun runs[] = {{"uniform", NeeMode::Uniform, mix, 0},
+                            {"power", NeeMode::Power, mix, 0},
+                            {"learned", NeeMode::Learned, mix, warmup},
+                            {"learned-online", NeeMode::Learned, mix, 0},
+                            {"candidates-only", NeeMode::Learned, 1.0f, 0}};  // learned with mix 1: no network
     for (const ModeRun& run : runs) {
         NeeSettings ns;
         ns.mode = run.mode;
         ns.mix = run.mix;
         ns.networkVertices = networkVertices;
         ns.trainBatches = trainBatches;
+        ns.warmupPaths = run.warmup;
         LightSelector selector(lights, scene.bounds, ns);
         if (run.mix >= 1.0f) selector.setTraining(false);
         PathTracer tracer(scene, accel, lights, &selector);
         OnlineRenderResult r = renderOnline(tracer, &selector, camera, settings, snaps);
         for (const OnlineSnapshot& s : r.snapshots) {
             ImageMetrics m = compareImages(s.image, reference);
-            rows.push_back({run.name, s.spp, m.rmse, rmse255(s.image, reference), s.seconds, 0.0});
+            rows.push_back({run.name, s.spp, m.rmse, rmse255(s.image, reference), s.seconds, 0.0, worstShare(s.image, reference)});
         }
         rows.back().trainingSeconds = r.stats.trainingSeconds;
         Image chosen(width, width);
         for (size_t i = 0; i < chosen.pixels.size(); ++i) chosen.pixels[i] = lightGroupColor(r.firstLight[i]);
         writePng(outDir + "/chosen-light-" + run.name + ".png", chosen);
         writePng(outDir + "/" + std::string(run.name) + "-" + std::to_string(snaps.back()) + "spp.png", r.image);
+        writePng(outDir + "/" + std::string(run.name) + "-" + std::to_string(snaps.back()) + "spp-error.png",
+                 squaredDifferenceImage(r.image, reference, 1e4f));
         if (!r.snapshots.empty() && r.snapshots.size() > 2)
             writePng(outDir + "/" + std::string(run.name) + "-4spp.png", r.snapshots[2].image);
-        std::printf("%-16s %d spp: %.2f s (training %.2f s, %llu steps), %.2f Mrays/s\n", run.name, snaps.back(),
-                    r.stats.render.seconds, r.stats.trainingSeconds, (unsigned long long)r.stats.trainingSteps,
+        std::printf("%-16s %d spp: %.2f s (warm-up %llu paths %.2f s; training %.2f s, %llu steps), %.2f Mrays/s\n",
+                    run.name, snaps.back(), r.stats.render.seconds, (unsigned long long)r.stats.warmupPaths,
+                    r.stats.warmupSeconds, r.stats.trainingSeconds, (unsigned long long)r.stats.trainingSteps,
                     r.stats.render.raysPerSecond() * 1e-6);
     }
 
     std::string csv = outDir + "/nee-bench.csv";
     FILE* f = std::fopen(csv.c_str(), "w");
     if (f) std::fprintf(f, "mode,spp,rmse,rmse_x255_clamped,seconds,efficiency\n");
-    std::printf("\n%-16s %5s %12s %12s %9s %14s\n", "mode", "spp", "RMSE", "RMSE(1/255)", "time s", "1/(MSE x s)");
+    std::printf("\n%-16s %5s %12s %12s %9s %14s %12s\n", "mode", "spp", "RMSE", "RMSE(1/255)", "time s", "1/(MSE x s)",
+                "worst 0.1%");
     for (const Row& r : rows) {
         double eff = 1.0 / (r.rmse * r.rmse * r.seconds);
-        std::printf("%-16s %5d %12.5f %12.2f %9.3f %14.4g\n", r.mode.c_str(), r.spp, r.rmse, r.rmse255, r.seconds, eff);
+        std::printf("%-16s %5d %12.5f %12.2f %9.3f %14.4g %11.1f%%\n", r.mode.c_str(), r.spp, r.rmse, r.rmse255, r.seconds,
+                    eff, 100.0 * r.worst);
         if (f) std::fprintf(f, "%s,%d,%.6g,%.6g,%.6g,%.6g\n", r.mode.c_str(), r.spp, r.rmse, r.rmse255, r.seconds, eff);
     }
     if (f) std::fclose(f);
@@ -175,12 +207,14 @@ int main(int argc, char** argv) {
             if (r.mode == mode && r.spp == spp) return &r;
         return nullptr;
     };
-    std::printf("\nuniform / learned:\n%5s %12s %18s\n", "spp", "RMSE ratio", "efficiency ratio");
-    for (int s : snaps) {
-        const Row *u = find("uniform", s), *l = find("learned", s);
-        if (!u || !l) continue;
-        std::printf("%5d %12.2f %18.2f\n", s, u->rmse / l->rmse,
-                    (u->rmse * u->rmse * u->seconds) / (l->rmse * l->rmse * l->seconds));
+    for (const char* learned : {"learned", "learned-online"}) {
+        std::printf("\nuniform / %s:\n%5s %12s %18s\n", learned, "spp", "RMSE ratio", "efficiency ratio");
+        for (int s : snaps) {
+            const Row *u = find("uniform", s), *l = find(learned, s);
+            if (!u || !l) continue;
+            std::printf("%5d %12.2f %18.2f\n", s, u->rmse / l->rmse,
+                        (u->rmse * u->rmse * u->seconds) / (l->rmse * l->rmse * l->seconds));
+        }
     }
     std::printf("\nwrote %s and images in %s\n", csv.c_str(), outDir.c_str());
     return 0;

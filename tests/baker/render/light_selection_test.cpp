@@ -86,7 +86,7 @@ TEST(LightGroups, CandidateTestNeverDropsALightThatContributes) {
             bool candidate = lights.groupCanContribute(g, si.p, si.ng);
             culled += !candidate;
             for (int k = 0; k < 8; ++k) {
-                LightSample ls = lights.sampleGroup(g, si.p, rng.uniform(), glm::vec2(rng.uniform(), rng.uniform()));
+                LightSample ls = lights.sampleGroup(g, si.p, glm::vec2(rng.uniform(), rng.uniform()));
                 bool contributes = ls.pdf > 0.0f && glm::dot(ls.wi, si.ng) > 0.0f &&
                                    (ls.Li.x > 0.0f || ls.Li.y > 0.0f || ls.Li.z > 0.0f);
                 if (contributes) {
