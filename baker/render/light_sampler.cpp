@@ -180,15 +180,14 @@ bool LightSampler::groupCanContribute(size_t g, const glm::vec3& p, const glm::v
     if (group.directional) return true;
     // Tolerance: a light lying in the tangent plane contributes nothing, so admitting it is harmless.
     float tol = 1e-4f * std::max(glm::length(group.upper - group.lower), rayOffset(p));
-    float above = -std::numeric_limits<float>::infinity(), front = -std::numeric_limits<float>::infinity();
-    for (int c = 0; c < 8; ++c) {
-        glm::vec3 corner((c & 1) ? group.upper.x : group.lower.x, (c & 2) ? group.upper.y : group.lower.y,
-                         (c & 4) ? group.upper.z : group.lower.z);
-        above = std::max(above, glm::dot(corner - p, ng));
-        if (group.planar) front = std::max(front, glm::dot(p - corner, group.normal));
-    }
+    // The largest value of a linear function over the group's box is at its centre plus the half extents
+    // weighted by the function's absolute coefficients.
+    glm::vec3 center = 0.5f * (group.lower + group.upper), half = 0.5f * (group.upper - group.lower);
+    float above = glm::dot(center - p, ng) + glm::dot(half, glm::abs(ng));
     if (!(above > -tol)) return false;
-    return !group.planar || front > -tol;
+    if (!group.planar) return true;
+    float front = glm::dot(p - center, group.normal) + glm::dot(half, glm::abs(group.normal));
+    return front > -tol;
 }
 
 void LightSampler::buildGroups(const std::vector<double>& power) {

@@ -222,7 +222,7 @@ bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const 
     }
     uint64_t mask = candidates(p, ng);
     int count = __builtin_popcountll(mask);
-    if (count <= 1 || (settings_.networkVertices > 0 && depth >= settings_.networkVertices)) {
+    if (count <= 1 || settings_.mix >= 1.0f || (settings_.networkVertices > 0 && depth >= settings_.networkVertices)) {
         for (size_t g = 0; g < G; ++g) probs[g] = (mask >> g & 1u) ? 1.0f / float(count) : 0.0f;
         return false;
     }
@@ -243,7 +243,7 @@ bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const 
     return true;
 }
 
-void LightSelector::train(const std::vector<NeeRecord>& records) {
+void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale) {
     if (settings_.mode != NeeMode::Learned || !settings_.train) return;
     std::vector<const NeeRecord*> useful;
     for (const NeeRecord& r : records)
@@ -276,7 +276,7 @@ void LightSelector::train(const std::vector<NeeRecord>& records) {
             network_.backward(r.input, a, dLogits, grad.data());
         }
         saved = params;
-        adam_.step(params, grad, settings_.learningRate);
+        adam_.step(params, grad, settings_.learningRate * lrScale);
         if (!std::all_of(params.begin(), params.end(), [](float v) { return std::isfinite(v); })) {
             params.swap(saved);
             ++rejectedSteps_;

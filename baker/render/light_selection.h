@@ -28,9 +28,10 @@ const char* neeModeName(NeeMode mode);
 
 struct NeeSettings {
     NeeMode mode = NeeMode::Power;
-    float mix = 0.05f;  // learned: share of the uniform distribution over the candidate groups, in (0, 1]
+    float mix = 0.05f;  // learned: share of the uniform distribution over the candidate groups, in (0, 1]; at 1
+                        // the network is not evaluated
     int batchesPerRound = 4;  // mini-batches of 64 paths rendered between two training steps
-    int trainBatches = 1;  // mini-batches of 64 recorded contributions per training step (Adam steps)
+    int trainBatches = 2;  // Adam steps per round, each on 64 of its recorded contributions
     int networkVertices = 0;  // path vertices (from the first) that evaluate the network; later ones choose
                               // uniformly among the candidate groups (cost control); 0 = every vertex
     // renderOnline, learned mode: camera paths traced before the image to train the network (not kept in the
@@ -38,7 +39,7 @@ struct NeeSettings {
     // see one distribution and its stratified pick dimension stays stratified over the lights. 0 = the
     // paper's variant: train between rounds throughout the render and keep every sample.
     uint64_t warmupPaths = uint64_t(1) << 17;
-    float learningRate = 1e-2f;
+    float learningRate = 2e-2f;  // Adam; a warm-up decays it linearly to zero (online_render.h)
     uint32_t seed = 0;  // initial weights
     bool train = true;  // false: keep the current weights (e.g. after a warm-up)
 };
@@ -98,7 +99,8 @@ public:
 
     // One training step on a round's records (learned mode with train = true; otherwise nothing). Records
     // with zero weight carry no gradient and are skipped; at most trainBatches x 64 are used, spread evenly.
-    void train(const std::vector<NeeRecord>& records);
+    // lrScale multiplies the learning rate (a schedule, e.g. decaying over a warm-up).
+    void train(const std::vector<NeeRecord>& records, float lrScale = 1.0f);
 
     // The network's own (unmixed) softmax over the candidate groups at a vertex, for tests and pictures.
     void networkDistribution(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo, uint64_t candidates,

@@ -4,8 +4,8 @@
 // pixel, so snapshots at 1, 2, 4, ... spp are exactly what a run with that many samples gives.
 //
 // Learned mode with NeeSettings::warmupPaths > 0 (the default): the rounds first trace that many camera
-// paths (their own sampler streams) only to train the network, which is then frozen and the image rendered
-// pass by pass. With warmupPaths = 0 (the paper's variant) the image itself is rendered in training rounds
+// paths (their own sampler streams) only to train the network, with the learning rate decaying linearly to
+// zero, then freeze it and render the image pass by pass. With warmupPaths = 0 (the paper's variant) the image itself is rendered in training rounds
 // and keeps every sample; the distribution then changes between a pixel's samples, which costs the pick
 // dimension its per-pixel stratification (docs/results.md measures both).
 //
@@ -55,7 +55,7 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
                                 const std::function<void(double)>& progress = {});
 
 // Trains `trainee` (learned mode) on paths that start at given surface points, as the baker's training paths
-// do: `paths` path samples in rounds; start(k, stream, index) returns the interaction path k leaves from and
+// do: `paths` path samples in rounds (learning rate decaying to zero, as for a render's warm-up); start(k, stream, index) returns the interaction path k leaves from and
 // sets its sampler's stream and index. The estimates themselves are not kept.
 struct WarmupStats {
     double seconds = 0.0;

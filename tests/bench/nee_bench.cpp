@@ -8,7 +8,7 @@
 // chosen at each pixel's first hit. All modes run through the same round-based renderer in one process.
 //
 // Usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] [--mix M]
-//                  [--network-vertices N] [--train-batches N] [--warmup PATHS] [--out DIR]
+//                  [--network-vertices N] [--train-batches N] [--warmup PATHS] [--lr R] [--seed S] [--out DIR]
 //
 // Modes: uniform, power, learned (warm-up of --warmup camera paths, then the network frozen for the image;
 // the default), learned-online (the paper's variant: trained between rounds throughout, every sample kept),
@@ -79,6 +79,8 @@ int main(int argc, char** argv) {
     float mix = defaults.mix;
     int networkVertices = defaults.networkVertices, trainBatches = defaults.trainBatches;
     uint64_t warmup = defaults.warmupPaths;
+    uint32_t seed = 0;
+    float learningRate = defaults.learningRate;
     for (int i = 1; i < argc; ++i) {
         auto next = [&]() { return i + 1 < argc ? argv[++i] : (std::fprintf(stderr, "missing value\n"), std::exit(2), nullptr); };
         if (!std::strcmp(argv[i], "--width")) width = std::atoi(next());
@@ -90,10 +92,12 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--network-vertices")) networkVertices = std::atoi(next());
         else if (!std::strcmp(argv[i], "--train-batches")) trainBatches = std::atoi(next());
         else if (!std::strcmp(argv[i], "--warmup")) warmup = std::strtoull(next(), nullptr, 10);
+        else if (!std::strcmp(argv[i], "--lr")) learningRate = float(std::atof(next()));
+        else if (!std::strcmp(argv[i], "--seed")) seed = uint32_t(std::strtoul(next(), nullptr, 10));
         else if (argv[i][0] != '-') scenePath = argv[i];
         else {
             std::fprintf(stderr, "usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] "
-                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup PATHS] [--out DIR]\n");
+                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup PATHS] [--lr R] [--seed S] [--out DIR]\n");
             return 2;
         }
     }
@@ -105,6 +109,7 @@ int main(int argc, char** argv) {
     RenderSettings settings;
     settings.width = settings.height = width;
     settings.maxDepth = maxDepth;
+    settings.seed = seed;  // the image's samples and (below) the networks' initial weights
     std::printf("scene %s: %zu light groups, %dx%d, max depth %d\n", scenePath.c_str(), lights.groupCount(), width,
                 width, maxDepth);
 
@@ -167,6 +172,8 @@ int main(int argc, char** argv) {
         ns.networkVertices = networkVertices;
         ns.trainBatches = trainBatches;
         ns.warmupPaths = run.warmup;
+        ns.seed = seed;
+        ns.learningRate = learningRate;
         LightSelector selector(lights, scene.bounds, ns);
         if (run.mix >= 1.0f) selector.setTraining(false);
         PathTracer tracer(scene, accel, lights, &selector);
