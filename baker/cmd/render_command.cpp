@@ -38,7 +38,7 @@ struct RenderOptions {
     bool quiet = false;
     NeeMode nee = NeeMode::Power;
     float neeMix = NeeSettings{}.mix;
-    uint64_t neeWarmup = NeeSettings{}.warmupPaths;
+    uint32_t neeWarmup = NeeSettings{}.warmupSteps;
     std::string chosenLight;
 };
 
@@ -115,7 +115,7 @@ int runRender(const RenderOptions& o) {
     NeeSettings nee;
     nee.mode = o.nee;
     nee.mix = o.neeMix;
-    nee.warmupPaths = o.neeWarmup;
+    nee.warmupSteps = o.neeWarmup;
     nee.seed = o.seed;
     LightSelector selector(lights, scene.bounds, nee);
     PathTracer tracer(scene, accel, lights, &selector);
@@ -193,10 +193,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "Learned selection: share of the uniform choice among the lights that can contribute (default 0.05)")
         ->check(CLI::Range(0.001f, 1.0f));
     cmd->add_option("--nee-warmup", opts->neeWarmup,
-                    "Learned selection: camera paths that train the network before the image, which then renders "
-                    "with it fixed (default 131072); 0 = train throughout the render and keep every sample (the "
-                    "paper's variant)")
-        ->check(CLI::Range(uint64_t(0), uint64_t(1) << 32));
+                    "Learned selection: training steps on camera paths traced before the image, which then renders "
+                    "with the network fixed (default 1024); 0 = train throughout the render and keep every sample "
+                    "(the paper's variant)")
+        ->check(CLI::Range(0, 1 << 24));
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");

@@ -175,19 +175,38 @@ float LightSampler::entryPdf(size_t i, float pick, const glm::vec3& p, const glm
     return pick * dist2 / (absCos * lights_[i].area);
 }
 
+namespace {
+// The test of groupCanContribute with the group's precomputed box centre, half extents and diagonal. The
+// largest value of a linear function over a box is at its centre plus the half extents weighted by the
+// function's absolute coefficients.
+inline bool boxCanContribute(const glm::vec3& center, const glm::vec3& half, float diagonal, bool planar,
+                             const glm::vec3& normal, const glm::vec3& p, const glm::vec3& ng, float offset) {
+    // Tolerance: a light lying in the tangent plane contributes nothing, so admitting it is harmless.
+    float tol = 1e-4f * std::max(diagonal, offset);
+    float above = glm::dot(center - p, ng) + glm::dot(half, glm::abs(ng));
+    if (!(above > -tol)) return false;
+    if (!planar) return true;
+    float front = glm::dot(p - center, normal) + glm::dot(half, glm::abs(normal));
+    return front > -tol;
+}
+}  // namespace
+
 bool LightSampler::groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const {
     const Group& group = groups_[g];
     if (group.directional) return true;
-    // Tolerance: a light lying in the tangent plane contributes nothing, so admitting it is harmless.
-    float tol = 1e-4f * std::max(glm::length(group.upper - group.lower), rayOffset(p));
-    // The largest value of a linear function over the group's box is at its centre plus the half extents
-    // weighted by the function's absolute coefficients.
-    glm::vec3 center = 0.5f * (group.lower + group.upper), half = 0.5f * (group.upper - group.lower);
-    float above = glm::dot(center - p, ng) + glm::dot(half, glm::abs(ng));
-    if (!(above > -tol)) return false;
-    if (!group.planar) return true;
-    float front = glm::dot(p - center, group.normal) + glm::dot(half, glm::abs(group.normal));
-    return front > -tol;
+    return boxCanContribute(group.center, group.half, group.diagonal, group.planar, group.normal, p, ng, rayOffset(p));
+}
+
+uint64_t LightSampler::candidateGroups(const glm::vec3& p, const glm::vec3& ng) const {
+    const float offset = rayOffset(p);
+    uint64_t mask = 0;
+    for (size_t g = 0; g < groups_.size(); ++g) {
+        const Group& group = groups_[g];
+        if (group.directional ||
+            boxCanContribute(group.center, group.half, group.diagonal, group.planar, group.normal, p, ng, offset))
+            mask |= uint64_t(1) << g;
+    }
+    return mask;
 }
 
 void LightSampler::buildGroups(const std::vector<double>& power) {
@@ -306,6 +325,9 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
             g.lower = b.lower;
             g.upper = b.upper;
         }
+        g.center = 0.5f * (g.lower + g.upper);
+        g.half = 0.5f * (g.upper - g.lower);
+        g.diagonal = glm::length(g.upper - g.lower);
         double acc = 0.0;
         for (uint32_t i : g.entries) {
             acc += power[i];

@@ -58,6 +58,8 @@ public:
     // normal ng (towards the side light may arrive from)? False only when the whole group lies behind the
     // tangent plane or p lies behind every emitting side of a one-sided planar group.
     bool groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const;
+    // Bit g set for every group g that groupCanContribute (at most kMaxLightGroups groups).
+    uint64_t candidateGroups(const glm::vec3& p, const glm::vec3& ng) const;
     // Samples a point of group g (entry by power within the group, u.x reused as in sample()); the pdf does
     // not include the probability of having chosen the group.
     LightSample sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const;
@@ -74,6 +76,8 @@ private:
         std::vector<double> cdf;  // by power within the group, ends at 1
         double power = 0.0;
         glm::vec3 lower{0.0f}, upper{0.0f};  // bounds of every emitting point (area and positional lights)
+        glm::vec3 center{0.0f}, half{0.0f};  // of that box
+        float diagonal = 0.0f;
         bool directional = false;  // holds a directional light: contributes wherever its direction allows
         bool planar = false;  // one-sided triangles that share one normal (`normal`)
         glm::vec3 normal{0.0f};

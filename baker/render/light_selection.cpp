@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include <tbb/parallel_for.h>
+
 namespace nrad {
 
 namespace {
@@ -39,47 +41,52 @@ void maskedSoftmax(const float* logits, size_t count, uint64_t mask, float* out)
 
 // out = relu(bias + sum_i in[i] W[i]); accumulators are locals so they stay in registers (no aliasing with the
 // weights). No test for zero inputs: with ReLU inputs it mispredicts half the time and costs more than it saves.
-// Generic vectors of 16 floats (GCC vector extensions): each clone maps them onto its own registers. Two
-// partial sums (even and odd rows) halve the chain of dependent FMAs that bounds a matrix-vector product.
+// Generic vectors of 16 floats (GCC vector extensions): each clone maps them onto its own registers. S partial
+// sums (rows i, i + S, ... go to sum i mod S) split the chain of dependent FMAs that bounds a matrix-vector
+// product: at least 8 independent chains in all, so narrow layers (the output) get more partial sums.
 typedef float Vec16 __attribute__((vector_size(64)));
 
-template <int N, bool Relu>
-NRAD_NEE_INLINE void dense(const float* __restrict W, const float* __restrict bias, const float* __restrict in, int inCount,
+template <int N, int InCount, bool Relu>
+NRAD_NEE_INLINE void dense(const float* __restrict W, const float* __restrict bias, const float* __restrict in,
                            float* __restrict out) {
     constexpr int V = N / 16;
-    Vec16 acc0[V], acc1[V];
+    constexpr int S = V >= 4 ? 2 : 8 / V;
+    Vec16 acc[S][V];
 #pragma GCC unroll 8
     for (int v = 0; v < V; ++v) {
-        __builtin_memcpy(&acc0[v], bias + 16 * v, sizeof(Vec16));
-        acc1[v] = Vec16{};
-    }
-    int i = 0;
-    for (; i + 1 < inCount; i += 2) {
-        const float* __restrict r0 = W + i * N;
-        const float* __restrict r1 = r0 + N;
-        Vec16 s0 = Vec16{} + in[i], s1 = Vec16{} + in[i + 1];
+        __builtin_memcpy(&acc[0][v], bias + 16 * v, sizeof(Vec16));
 #pragma GCC unroll 8
-        for (int v = 0; v < V; ++v) {
-            Vec16 w0, w1;
-            __builtin_memcpy(&w0, r0 + 16 * v, sizeof(Vec16));
-            __builtin_memcpy(&w1, r1 + 16 * v, sizeof(Vec16));
-            acc0[v] += s0 * w0;
-            acc1[v] += s1 * w1;
+        for (int k = 1; k < S; ++k) acc[k][v] = Vec16{};
+    }
+    constexpr int Tail = InCount - InCount % S;
+    for (int i = 0; i < Tail; i += S) {
+#pragma GCC unroll 8
+        for (int k = 0; k < S; ++k) {
+            const float* __restrict row = W + (i + k) * N;
+            Vec16 x = Vec16{} + in[i + k];
+#pragma GCC unroll 8
+            for (int v = 0; v < V; ++v) {
+                Vec16 w;
+                __builtin_memcpy(&w, row + 16 * v, sizeof(Vec16));
+                acc[k][v] += x * w;
+            }
         }
     }
-    if (i < inCount) {
-        const float* __restrict r0 = W + i * N;
-        Vec16 s0 = Vec16{} + in[i];
+    for (int i = Tail; i < InCount; ++i) {
+        const float* __restrict row = W + i * N;
+        Vec16 x = Vec16{} + in[i];
 #pragma GCC unroll 8
         for (int v = 0; v < V; ++v) {
-            Vec16 w0;
-            __builtin_memcpy(&w0, r0 + 16 * v, sizeof(Vec16));
-            acc0[v] += s0 * w0;
+            Vec16 w;
+            __builtin_memcpy(&w, row + 16 * v, sizeof(Vec16));
+            acc[0][v] += x * w;
         }
     }
 #pragma GCC unroll 8
     for (int v = 0; v < V; ++v) {
-        Vec16 r = acc0[v] + acc1[v];
+        Vec16 r = acc[0][v];
+#pragma GCC unroll 8
+        for (int k = 1; k < S; ++k) r += acc[k][v];
         if (Relu) r = r > Vec16{} ? r : Vec16{};
         __builtin_memcpy(out + 16 * v, &r, sizeof(Vec16));
     }
@@ -92,50 +99,103 @@ NRAD_NEE_CLONES void forwardLayers(const float* P, int Kp, const float* x, NeeNe
     const float* B2 = W2 + kNeeHidden * kNeeHidden;
     const float* W3 = B2 + kNeeHidden;
     const float* B3 = W3 + kNeeHidden * Kp;
-    dense<kNeeHidden, true>(W1, B1, x, kNeeInputs, a.h1);
-    dense<kNeeHidden, true>(W2, B2, a.h1, kNeeHidden, a.h2);
+    dense<kNeeHidden, kNeeInputs, true>(W1, B1, x, a.h1);
+    dense<kNeeHidden, kNeeHidden, true>(W2, B2, a.h1, a.h2);
     switch (Kp) {  // the output rows are padded to one of these widths
-        case 16: dense<16, false>(W3, B3, a.h2, kNeeHidden, a.logits); break;
-        case 32: dense<32, false>(W3, B3, a.h2, kNeeHidden, a.logits); break;
-        default: dense<64, false>(W3, B3, a.h2, kNeeHidden, a.logits); break;
+        case 16: dense<16, kNeeHidden, false>(W3, B3, a.h2, a.logits); break;
+        case 32: dense<32, kNeeHidden, false>(W3, B3, a.h2, a.logits); break;
+        default: dense<64, kNeeHidden, false>(W3, B3, a.h2, a.logits); break;
     }
 }
 
-NRAD_NEE_CLONES void backwardLayers(const float* P, int K, const float* x, const NeeNetwork::Activations& a,
-                                    const float* dLogits, float* grad) {
+// Sum of a vector's lanes in lane order (a fixed order: the same bits on every run of one code path).
+NRAD_NEE_INLINE float laneSum(const Vec16& v) {
+    float s = 0.0f;
+#pragma GCC unroll 16
+    for (int l = 0; l < 16; ++l) s += v[l];
+    return s;
+}
+
+// Vectors pass by reference: a 64-byte vector by value would change the ABI between the clones.
+NRAD_NEE_INLINE void load16(Vec16& v, const float* p) { __builtin_memcpy(&v, p, sizeof(Vec16)); }
+
+NRAD_NEE_INLINE void addTo16(float* p, const Vec16& v) {
+    Vec16 x;
+    load16(x, p);
+    x += v;
+    __builtin_memcpy(p, &x, sizeof(Vec16));
+}
+
+NRAD_NEE_INLINE void fmaRow(const float* p, const Vec16& a, Vec16& s) {
+    Vec16 w;
+    load16(w, p);
+    s += w * a;
+}
+
+// dLoss/dParams for one input, in vectors of 16 over each layer's outputs (the sums over outputs that give
+// the previous layer's deltas are kept in vector lanes and added up at the end of each row).
+template <int K>
+NRAD_NEE_INLINE void backwardPadded(const float* P, const float* x, const NeeNetwork::Activations& a, const float* dLogits,
+                                    float* grad) {
+    constexpr int VK = K / 16, VH = kNeeHidden / 16;
     const size_t w1 = 0, b1 = kNeeInputs * kNeeHidden, w2 = b1 + kNeeHidden, b2 = w2 + kNeeHidden * kNeeHidden,
                  w3 = b2 + kNeeHidden, b3 = w3 + size_t(kNeeHidden) * size_t(K);
-    float d2[kNeeHidden], d1[kNeeHidden];
-    for (int o = 0; o < K; ++o) grad[b3 + size_t(o)] += dLogits[o];
+    alignas(64) float d2[kNeeHidden], d1[kNeeHidden];
+    Vec16 dl[VK];
+#pragma GCC unroll 4
+    for (int v = 0; v < VK; ++v) {
+        load16(dl[v], dLogits + 16 * v);
+        addTo16(grad + b3 + 16 * v, dl[v]);
+    }
     for (int i = 0; i < kNeeHidden; ++i) {
-        const float* row = P + w3 + size_t(i) * size_t(K);
-        float* g = grad + w3 + size_t(i) * size_t(K);
-        float s = 0.0f;
-        for (int o = 0; o < K; ++o) {
-            g[o] += a.h2[i] * dLogits[o];
-            s += row[o] * dLogits[o];
+        const float* row = P + w3 + size_t(i) * K;
+        float* g = grad + w3 + size_t(i) * K;
+        Vec16 h = Vec16{} + a.h2[i], s = Vec16{};
+#pragma GCC unroll 4
+        for (int v = 0; v < VK; ++v) {
+            addTo16(g + 16 * v, h * dl[v]);
+            fmaRow(row + 16 * v, dl[v], s);
         }
-        d2[i] = a.h2[i] > 0.0f ? s : 0.0f;
+        d2[i] = a.h2[i] > 0.0f ? laneSum(s) : 0.0f;
     }
-    for (int o = 0; o < kNeeHidden; ++o) {
-        grad[b2 + size_t(o)] += d2[o];
-        d1[o] = 0.0f;
+    Vec16 d2v[VH];
+#pragma GCC unroll 4
+    for (int v = 0; v < VH; ++v) {
+        load16(d2v[v], d2 + 16 * v);
+        addTo16(grad + b2 + 16 * v, d2v[v]);
     }
     for (int i = 0; i < kNeeHidden; ++i) {
+        d1[i] = 0.0f;
         if (a.h1[i] <= 0.0f) continue;
         const float* row = P + w2 + size_t(i) * kNeeHidden;
         float* g = grad + w2 + size_t(i) * kNeeHidden;
-        float s = 0.0f;
-        for (int o = 0; o < kNeeHidden; ++o) {
-            g[o] += a.h1[i] * d2[o];
-            s += row[o] * d2[o];
+        Vec16 h = Vec16{} + a.h1[i], s = Vec16{};
+#pragma GCC unroll 4
+        for (int v = 0; v < VH; ++v) {
+            addTo16(g + 16 * v, h * d2v[v]);
+            fmaRow(row + 16 * v, d2v[v], s);
         }
-        d1[i] = s;
+        d1[i] = laneSum(s);
     }
-    for (int o = 0; o < kNeeHidden; ++o) grad[b1 + size_t(o)] += d1[o];
+    Vec16 d1v[VH];
+#pragma GCC unroll 4
+    for (int v = 0; v < VH; ++v) {
+        load16(d1v[v], d1 + 16 * v);
+        addTo16(grad + b1 + 16 * v, d1v[v]);
+    }
     for (int i = 0; i < kNeeInputs; ++i) {
-        float* g = grad + w1 + size_t(i) * kNeeHidden;
-        for (int o = 0; o < kNeeHidden; ++o) g[o] += x[i] * d1[o];
+        Vec16 xi = Vec16{} + x[i];
+#pragma GCC unroll 4
+        for (int v = 0; v < VH; ++v) addTo16(grad + w1 + size_t(i) * kNeeHidden + 16 * v, xi * d1v[v]);
+    }
+}
+
+NRAD_NEE_CLONES void backwardLayers(const float* P, int Kp, const float* x, const NeeNetwork::Activations& a,
+                                    const float* dLogits, float* grad) {
+    switch (Kp) {  // the output rows are padded to one of these widths
+        case 16: backwardPadded<16>(P, x, a, dLogits, grad); break;
+        case 32: backwardPadded<32>(P, x, a, dLogits, grad); break;
+        default: backwardPadded<64>(P, x, a, dLogits, grad); break;
     }
 }
 
@@ -198,10 +258,7 @@ void LightSelector::input(const glm::vec3& p, const glm::vec3& ns, const glm::ve
 }
 
 uint64_t LightSelector::candidates(const glm::vec3& p, const glm::vec3& ng) const {
-    uint64_t mask = 0;
-    for (size_t g = 0; g < lights_.groupCount(); ++g)
-        if (lights_.groupCanContribute(g, p, ng)) mask |= uint64_t(1) << g;
-    return mask;
+    return lights_.candidateGroups(p, ng);
 }
 
 void LightSelector::networkDistribution(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo,
@@ -257,24 +314,34 @@ void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale) 
     }
     const size_t G = lights_.groupCount();
     std::vector<float>& params = network_.parameters();
-    std::vector<float> grad(params.size()), saved;
+    std::vector<float> grad, saved;
     for (size_t begin = 0; begin < useful.size(); begin += 64) {
         size_t end = std::min(useful.size(), begin + 64);
         // Contribution-weighted cross-entropy, sum_k w_k (-log q(light_k | x_k)) / sum_k w_k: its gradient
         // estimates that of the KL divergence from the normalised contributions to the network's distribution.
         double wsum = 0.0;
         for (size_t k = begin; k < end; ++k) wsum += double(useful[k]->weight);
-        std::fill(grad.begin(), grad.end(), 0.0f);
-        float dLogits[LightSampler::kMaxLightGroups] = {}, q[LightSampler::kMaxLightGroups];
-        for (size_t k = begin; k < end; ++k) {
-            const NeeRecord& r = *useful[k];
-            NeeNetwork::Activations a;
-            network_.forward(r.input, a);
-            maskedSoftmax(a.logits, G, r.candidates, q);
-            float w = float(double(r.weight) / wsum);
-            for (size_t g = 0; g < G; ++g) dLogits[g] = w * (q[g] - (g == r.light ? 1.0f : 0.0f));
-            network_.backward(r.input, a, dLogits, grad.data());
-        }
+        // The gradient in fixed chunks of the mini-batch, in parallel, summed in chunk order: the same bits
+        // for any number of threads.
+        const size_t chunks = (end - begin + kTrainChunk - 1) / kTrainChunk;
+        chunkGrad_.resize(std::max(chunkGrad_.size(), chunks));
+        tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+            std::vector<float>& g = chunkGrad_[c];
+            g.assign(params.size(), 0.0f);
+            float dLogits[LightSampler::kMaxLightGroups] = {}, q[LightSampler::kMaxLightGroups];
+            for (size_t k = begin + c * kTrainChunk; k < std::min(end, begin + (c + 1) * kTrainChunk); ++k) {
+                const NeeRecord& r = *useful[k];
+                NeeNetwork::Activations a;
+                network_.forward(r.input, a);
+                maskedSoftmax(a.logits, G, r.candidates, q);
+                float w = float(double(r.weight) / wsum);
+                for (size_t o = 0; o < G; ++o) dLogits[o] = w * (q[o] - (o == r.light ? 1.0f : 0.0f));
+                network_.backward(r.input, a, dLogits, g.data());
+            }
+        });
+        grad = chunkGrad_[0];
+        for (size_t c = 1; c < chunks; ++c)
+            for (size_t i = 0; i < grad.size(); ++i) grad[i] += chunkGrad_[c][i];
         saved = params;
         adam_.step(params, grad, settings_.learningRate * lrScale);
         if (!std::all_of(params.begin(), params.end(), [](float v) { return std::isfinite(v); })) {

@@ -34,11 +34,13 @@ struct NeeSettings {
     int trainBatches = 2;  // Adam steps per round, each on 64 of its recorded contributions
     int networkVertices = 0;  // path vertices (from the first) that evaluate the network; later ones choose
                               // uniformly among the candidate groups (cost control); 0 = every vertex
-    // renderOnline, learned mode: camera paths traced before the image to train the network (not kept in the
+    // renderOnline, learned mode: Adam steps taken on camera paths traced before the image (not kept in the
     // image; their time counts); the network is then frozen for the whole image, so every pixel's samples
-    // see one distribution and its stratified pick dimension stays stratified over the lights. 0 = the
-    // paper's variant: train between rounds throughout the render and keep every sample.
-    uint64_t warmupPaths = uint64_t(1) << 17;
+    // see one distribution and its stratified pick dimension stays stratified over the lights. Each warm-up
+    // round traces as many mini-batches of 64 paths as give about trainBatches x 64 useful records. 0 = the
+    // paper's variant: train between rounds of batchesPerRound mini-batches throughout the render and keep
+    // every sample.
+    uint32_t warmupSteps = 1024;
     float learningRate = 2e-2f;  // Adam; a warm-up decays it linearly to zero (online_render.h)
     uint32_t seed = 0;  // initial weights
     bool train = true;  // false: keep the current weights (e.g. after a warm-up)
@@ -121,6 +123,8 @@ private:
     NeeNetwork network_;
     Adam adam_;
     uint64_t steps_ = 0, rejectedSteps_ = 0;
+    static constexpr size_t kTrainChunk = 16;  // records per parallel gradient chunk
+    std::vector<std::vector<float>> chunkGrad_;
 };
 
 }  // namespace nrad

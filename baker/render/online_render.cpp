@@ -36,11 +36,18 @@ void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>* records, Ray
 }
 
 // Learning-rate schedule of a warm-up (training that ends with the network frozen): linear decay from the
-// full rate to zero over the warm-up's paths, so the frozen weights are not one noisy step's. Measured on
-// split-rooms (docs/results.md): RMSE at 32 spp 2.61x below uniform's against 2.2x at a constant rate,
-// and much less spread over seeds.
+// full rate to zero, so the frozen weights are not one noisy step's. Measured on split-rooms
+// (docs/results.md): RMSE at 32 spp 2.5-2.7x below uniform's against 2.0-2.6x at a constant rate.
 float warmupLearningRateScale(uint64_t begin, uint64_t paths) {
     return paths > 0 ? 1.0f - float(double(begin) / double(paths)) : 1.0f;
+}
+
+// Mini-batches of 64 paths in a warm-up round: enough for trainBatches x 64 useful records at the previous
+// round's yield (records per path: about 1 for direct light with a trained network, several for long
+// paths, fewer while untrained), 1 to 16. Deterministic: the yield is a count of the previous round.
+uint64_t warmupBatches(int trainBatches, double yield) {
+    double paths = double(trainBatches) * 64.0 / std::max(yield, 1.0 / 64.0);
+    return uint64_t(std::clamp(std::ceil(paths / 64.0), 1.0, 16.0));
 }
 
 // Sampler seed of the warm-up paths (distinct from the image's streams).
@@ -90,27 +97,31 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
     };
 
     // Warm-up: camera paths with their own sampler streams, in training rounds; the image keeps nothing.
-    if (learning && trainee->settings().warmupPaths > 0) {
-        const uint64_t paths = trainee->settings().warmupPaths;
+    if (learning && trainee->settings().warmupSteps > 0) {
+        const NeeSettings& ns = trainee->settings();
+        const uint64_t rounds = (uint64_t(ns.warmupSteps) + uint64_t(ns.trainBatches) - 1) / uint64_t(ns.trainBatches);
         RayCounters warmupRays;
-        for (uint64_t begin = 0; begin < paths; begin += roundSize) {
-            runRound(begin, std::min(paths, begin + roundSize), &records, warmupRays,
-                     [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
-                         uint32_t pixel = order[k % P];
-                         int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
-                         Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed ^ kWarmupSeed),
-                                         uint32_t(k / P));
-                         glm::vec2 jitter = sampler.get2D();
-                         glm::vec3 o, d;
-                         rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
-                         tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
-                     });
+        uint64_t next = 0;  // warm-up path index: pixel order[k % P], sample k / P
+        double yield = 1.0;  // useful records per path in the previous round
+        for (uint64_t round = 0; round < rounds; ++round) {
+            uint64_t paths = 64 * warmupBatches(ns.trainBatches, yield);
+            runRound(next, next + paths, &records, warmupRays, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
+                uint32_t pixel = order[k % P];
+                int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
+                Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed ^ kWarmupSeed), uint32_t(k / P));
+                glm::vec2 jitter = sampler.get2D();
+                glm::vec3 o, d;
+                rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
+            });
+            next += paths;
+            yield = double(records.size()) / double(paths);
             ++result.stats.rounds;
             result.stats.records += records.size();
-            train(warmupLearningRateScale(begin, paths));
+            train(1.0f - float(double(round) / double(rounds)));
         }
         trainee->setTraining(false);
-        result.stats.warmupPaths = paths;
+        result.stats.warmupPaths = next;
         result.stats.warmupSeconds = since(start);
     }
 

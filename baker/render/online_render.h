@@ -3,9 +3,10 @@
 // round recorded. Paths visit the pixels in a fixed shuffled order, one pass of every pixel per sample per
 // pixel, so snapshots at 1, 2, 4, ... spp are exactly what a run with that many samples gives.
 //
-// Learned mode with NeeSettings::warmupPaths > 0 (the default): the rounds first trace that many camera
-// paths (their own sampler streams) only to train the network, with the learning rate decaying linearly to
-// zero, then freeze it and render the image pass by pass. With warmupPaths = 0 (the paper's variant) the image itself is rendered in training rounds
+// Learned mode with NeeSettings::warmupSteps > 0 (the default): training rounds of camera paths (their own
+// sampler streams, each round sized to give trainBatches x 64 useful records) first take that many Adam
+// steps, the learning rate decaying linearly to zero, then the network is frozen and the image rendered
+// pass by pass. With warmupSteps = 0 (the paper's variant) the image itself is rendered in training rounds
 // and keeps every sample; the distribution then changes between a pixel's samples, which costs the pick
 // dimension its per-pixel stratification (docs/results.md measures both).
 //

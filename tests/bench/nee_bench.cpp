@@ -8,9 +8,9 @@
 // chosen at each pixel's first hit. All modes run through the same round-based renderer in one process.
 //
 // Usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] [--mix M]
-//                  [--network-vertices N] [--train-batches N] [--warmup PATHS] [--lr R] [--seed S] [--out DIR]
+//                  [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--seed S] [--out DIR]
 //
-// Modes: uniform, power, learned (warm-up of --warmup camera paths, then the network frozen for the image;
+// Modes: uniform, power, learned (warm-up of --warmup training steps on camera paths, then the network frozen;
 // the default), learned-online (the paper's variant: trained between rounds throughout, every sample kept),
 // candidates-only (uniform over the groups that pass the geometric test; no network).
 #include <algorithm>
@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
     const NeeSettings defaults;
     float mix = defaults.mix;
     int networkVertices = defaults.networkVertices, trainBatches = defaults.trainBatches;
-    uint64_t warmup = defaults.warmupPaths;
+    uint32_t warmup = defaults.warmupSteps;
     uint32_t seed = 0;
     float learningRate = defaults.learningRate;
     for (int i = 1; i < argc; ++i) {
@@ -91,13 +91,13 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--out")) outDir = next();
         else if (!std::strcmp(argv[i], "--network-vertices")) networkVertices = std::atoi(next());
         else if (!std::strcmp(argv[i], "--train-batches")) trainBatches = std::atoi(next());
-        else if (!std::strcmp(argv[i], "--warmup")) warmup = std::strtoull(next(), nullptr, 10);
+        else if (!std::strcmp(argv[i], "--warmup")) warmup = uint32_t(std::strtoul(next(), nullptr, 10));
         else if (!std::strcmp(argv[i], "--lr")) learningRate = float(std::atof(next()));
         else if (!std::strcmp(argv[i], "--seed")) seed = uint32_t(std::strtoul(next(), nullptr, 10));
         else if (argv[i][0] != '-') scenePath = argv[i];
         else {
             std::fprintf(stderr, "usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] "
-                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup PATHS] [--lr R] [--seed S] [--out DIR]\n");
+                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--seed S] [--out DIR]\n");
             return 2;
         }
     }
@@ -158,7 +158,7 @@ int main(int argc, char** argv) {
         const char* name;
         NeeMode mode;
         float mix;
-        uint64_t warmup;
+        uint32_t warmup;
     };
     const ModeRun runs[] = {{"uniform", NeeMode::Uniform, mix, 0},
                             {"power", NeeMode::Power, mix, 0},
@@ -171,7 +171,7 @@ int main(int argc, char** argv) {
         ns.mix = run.mix;
         ns.networkVertices = networkVertices;
         ns.trainBatches = trainBatches;
-        ns.warmupPaths = run.warmup;
+        ns.warmupSteps = run.warmup;
         ns.seed = seed;
         ns.learningRate = learningRate;
         LightSelector selector(lights, scene.bounds, ns);
