@@ -300,13 +300,14 @@ bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const 
     return true;
 }
 
-void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale) {
+void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale, int maxSteps) {
     if (settings_.mode != NeeMode::Learned || !settings_.train) return;
     std::vector<const NeeRecord*> useful;
     for (const NeeRecord& r : records)
         if (r.weight > 0.0f && std::isfinite(r.weight) && r.light < lights_.groupCount()) useful.push_back(&r);
     if (useful.empty()) return;
-    const size_t cap = size_t(settings_.trainBatches) * 64;
+    const size_t cap = size_t(std::max(0, std::min(settings_.trainBatches, maxSteps))) * 64;
+    if (cap == 0) return;
     if (useful.size() > cap) {
         std::vector<const NeeRecord*> spread(cap);
         for (size_t k = 0; k < cap; ++k) spread[k] = useful[k * useful.size() / cap];

@@ -101,8 +101,8 @@ public:
 
     // One training step on a round's records (learned mode with train = true; otherwise nothing). Records
     // with zero weight carry no gradient and are skipped; at most trainBatches x 64 are used, spread evenly.
-    // lrScale multiplies the learning rate (a schedule, e.g. decaying over a warm-up).
-    void train(const std::vector<NeeRecord>& records, float lrScale = 1.0f);
+    // lrScale multiplies the learning rate (a schedule, e.g. decaying over a warm-up); at most maxSteps steps.
+    void train(const std::vector<NeeRecord>& records, float lrScale = 1.0f, int maxSteps = 1 << 30);
 
     // The network's own (unmixed) softmax over the candidate groups at a vertex, for tests and pictures.
     void networkDistribution(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo, uint64_t candidates,

@@ -90,20 +90,24 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
     const uint64_t roundSize = uint64_t(trainee ? trainee->settings().batchesPerRound : 16) * 64;
     std::vector<NeeRecord> records;
     RayCounters counters;
-    auto train = [&](float lrScale) {
+    auto train = [&](float lrScale, int maxSteps) {
         auto t = Clock::now();
-        trainee->train(records, lrScale);
+        trainee->train(records, lrScale, maxSteps);
         result.stats.trainingSeconds += since(t);
     };
 
     // Warm-up: camera paths with their own sampler streams, in training rounds; the image keeps nothing.
-    if (learning && trainee->settings().warmupSteps > 0) {
+    if (learning && trainee->settings().warmupSteps > 0 && trainee->groupCount() > 1) {
         const NeeSettings& ns = trainee->settings();
-        const uint64_t rounds = (uint64_t(ns.warmupSteps) + uint64_t(ns.trainBatches) - 1) / uint64_t(ns.trainBatches);
+        // Rounds until the steps are taken; it gives up after 8 rounds in a row record nothing (no light
+        // reaches what the camera sees) or twice the rounds a normal warm-up needs.
+        const uint64_t target = ns.warmupSteps, steps0 = trainee->trainingSteps() + trainee->rejectedSteps();
+        const uint64_t maxRounds = 2 * ((target + uint64_t(ns.trainBatches) - 1) / uint64_t(ns.trainBatches));
         RayCounters warmupRays;
         uint64_t next = 0;  // warm-up path index: pixel order[k % P], sample k / P
         double yield = 1.0;  // useful records per path in the previous round
-        for (uint64_t round = 0; round < rounds; ++round) {
+        int emptyRounds = 0;
+        for (uint64_t round = 0, taken = 0; taken < target && round < maxRounds && emptyRounds < 8; ++round) {
             uint64_t paths = 64 * warmupBatches(ns.trainBatches, yield);
             runRound(next, next + paths, &records, warmupRays, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
                 uint32_t pixel = order[k % P];
@@ -116,9 +120,11 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
             });
             next += paths;
             yield = double(records.size()) / double(paths);
+            emptyRounds = records.empty() ? emptyRounds + 1 : 0;
             ++result.stats.rounds;
             result.stats.records += records.size();
-            train(1.0f - float(double(round) / double(rounds)));
+            train(1.0f - float(double(taken) / double(target)), int(std::min<uint64_t>(target - taken, 1u << 30)));
+            taken = trainee->trainingSteps() + trainee->rejectedSteps() - steps0;
         }
         trainee->setTraining(false);
         result.stats.warmupPaths = next;
@@ -151,7 +157,7 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
             if (online) {
                 ++result.stats.rounds;
                 result.stats.records += records.size();
-                train(1.0f);
+                train(1.0f, 1 << 30);
             }
         }
         for (uint64_t i = 0; i < P; ++i) {

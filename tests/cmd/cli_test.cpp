@@ -334,6 +334,7 @@ TEST(CliRender, LearnedLightSelectionWritesTheImageAndTheChosenLights) {
                       dir + "/c.exr' -q");
     ASSERT_EQ(r.exitCode, 0) << r.output;
     EXPECT_NE(r.output.find("light selection learned over 8 lights"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(" 1024 training steps"), std::string::npos) << r.output;  // the default warm-up
     Image img = readExr(dir + "/l.exr"), chosen = readExr(dir + "/c.exr");
     EXPECT_GT(img.mean().x, 0.0);
     // Every pixel that sees a room interior chose a light; colours come from a palette of saturated hues.
@@ -343,7 +344,13 @@ TEST(CliRender, LearnedLightSelectionWritesTheImageAndTheChosenLights) {
     EXPECT_EQ(run("render " + scene + " --nee sometimes -o '" + dir + "/x.exr' -q").exitCode, 2);  // usage
     EXPECT_EQ(run("render " + scene + " --nee learned --chosen-light '" + dir + "/x.bmp' -o '" + dir + "/x.exr' -q").exitCode,
               2);
+    EXPECT_EQ(run("render " + scene + " --nee learned --nee-warmup -5 -o '" + dir + "/x.exr' -q").exitCode, 2);
     EXPECT_FALSE(std::filesystem::exists(dir + "/x.exr"));
+    // --nee-warmup 0: the paper's variant, trained between rounds of the image itself, no warm-up paths.
+    RunResult online = run("render " + scene + " --nee learned --nee-warmup 0 --spp 2 --width 32 -o '" + dir + "/o.exr' -q");
+    ASSERT_EQ(online.exitCode, 0) << online.output;
+    // 32 x 32 x 2 paths = 8 rounds of 256, two Adam steps each.
+    EXPECT_NE(online.output.find("(0 warm-up paths, 16 training steps"), std::string::npos) << online.output;
 }
 
 }  // namespace

@@ -213,18 +213,46 @@ TEST(LearnedNee, AfterTheWarmUpTheImageIsTheTileRenderersWithTheFrozenNetwork) {
     PathTracer tracer(rig.scene, rig.accel, rig.lights, &selector);
     OnlineRenderResult r = renderOnline(tracer, &selector, rig.camera, s);
     EXPECT_FALSE(selector.settings().train);
-    // 16 rounds of 1-16 mini-batches of 64 paths, 1 or 2 Adam steps each (2 when more than 64 records).
-    EXPECT_EQ(r.stats.rounds, 16u);
-    EXPECT_GE(r.stats.trainingSteps, 16u);
-    EXPECT_LE(r.stats.trainingSteps, 32u);
+    // Exactly 32 steps, in rounds of 1-16 mini-batches of 64 paths with 1 or 2 steps each (2 when a round
+    // recorded more than 64 contributions).
+    EXPECT_EQ(r.stats.trainingSteps, 32u);
+    EXPECT_GE(r.stats.rounds, 16u);
+    EXPECT_LE(r.stats.rounds, 32u);
     EXPECT_EQ(r.stats.warmupPaths % 64, 0u);
-    EXPECT_GE(r.stats.warmupPaths, 16u * 64u);
-    EXPECT_LE(r.stats.warmupPaths, 16u * 16u * 64u);
+    EXPECT_GE(r.stats.warmupPaths, r.stats.rounds * 64u);
+    EXPECT_LE(r.stats.warmupPaths, r.stats.rounds * 16u * 64u);
     EXPECT_NE(0, std::memcmp(initial.data(), selector.network().parameters().data(), initial.size() * sizeof(float)));
     const std::vector<float> frozen = selector.network().parameters();
     Image tiles = tracer.render(rig.camera, s);
     EXPECT_EQ(0, std::memcmp(r.image.pixels.data(), tiles.pixels.data(), tiles.pixels.size() * sizeof(glm::vec3)));
     EXPECT_EQ(0, std::memcmp(frozen.data(), selector.network().parameters().data(), frozen.size() * sizeof(float)));
+}
+
+TEST(LearnedNee, NoWarmUpWhereThereIsNothingToLearn) {
+    RenderSettings s;
+    s.width = s.height = 16;
+    s.spp = 2;
+    {
+        // One light (the Cornell box): the network would never be evaluated, so no warm-up.
+        Rig rig(loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf")));
+        ASSERT_EQ(rig.lights.groupCount(), 1u);
+        OnlineRenderResult r = renderWith(rig, NeeMode::Learned, s);
+        EXPECT_EQ(r.stats.warmupPaths, 0u);
+        EXPECT_EQ(r.stats.trainingSteps, 0u);
+        EXPECT_GT(r.image.mean().x, 0.0f);
+    }
+    {
+        // Eight lights, but the camera looks away from the rooms: nothing is ever recorded, and the warm-up
+        // gives up after 8 empty rounds of 16 mini-batches instead of tracing its full budget.
+        Rig rig(splitRooms());
+        rig.camera.worldFromCamera = glm::mat3(-1.0f) * rig.camera.worldFromCamera;  // turned around
+        rig.camera.worldFromCamera[1] = -rig.camera.worldFromCamera[1];  // keep it right-handed
+        OnlineRenderResult r = renderWith(rig, NeeMode::Learned, s);
+        EXPECT_EQ(r.stats.trainingSteps, 0u);
+        EXPECT_EQ(r.stats.rounds, 8u);
+        // The first round assumes one record per path (2 mini-batches for two steps), the empty ones 16.
+        EXPECT_EQ(r.stats.warmupPaths, uint64_t(2 * 64 + 7 * 16 * 64));
+    }
 }
 
 // Group indices of the two lights of room r (lintel, pilaster): the lights primitive lists them room by room.
