@@ -32,6 +32,7 @@
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/validate/metrics.h"
+#include "fma_peak.h"
 
 using namespace nrad;
 
@@ -147,7 +148,31 @@ int main(int argc, char** argv) {
             sink += probs[0];
         }
         double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("network: %.0f ns per evaluation incl. softmax (one thread; checksum %.3f)\n", 1e9 * s / n, sink);
+        std::printf("network: %.0f ns per evaluation incl. input and softmax (one thread; checksum %.3f)\n",
+                    1e9 * s / n, sink);
+        // The forward pass alone, against this core's FMA peak measured now: the layers execute
+        // 9 x 64 + 64 x 64 + 64 x padded-outputs multiply-adds.
+        const NeeNetwork& net = selector.network();
+        std::vector<float> X(size_t(n) * kNeeInputs);
+        for (size_t i = 0; i < X.size(); ++i) X[i] = float((i * 2654435761u) % 1000u) / 500.0f - 1.0f;
+        NeeNetwork::Activations a;
+        t0 = std::chrono::steady_clock::now();
+        for (int i = 0; i < n; ++i) {
+            net.forward(&X[size_t(i) * kNeeInputs], a);
+            sink += a.logits[0];
+        }
+        s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const int padded = net.outputs() <= 16 ? 16 : net.outputs() <= 32 ? 32 : 64;
+        const double fmas = double(kNeeInputs * kNeeHidden + kNeeHidden * kNeeHidden + kNeeHidden * padded);
+        std::printf("network forward pass: %.0f ns (%.0f multiply-adds)", 1e9 * s / n, fmas);
+#if defined(__x86_64__)
+        if (int lanes = fma_peak::widestFmaWidth()) {
+            double peak = fma_peak::fmaPeak(1, lanes);
+            std::printf(" = %.0f%% of this core's FMA peak (%.1f G lane-FMA/s, %d-wide; checksum %.3f)", 100.0 * fmas * n / s / peak,
+                        peak * 1e-9, lanes, sink);
+        }
+#endif
+        std::printf("\n");
     }
 
     std::vector<int> snaps;

@@ -23,69 +23,15 @@
 #include <thread>
 #include <vector>
 
-#include <immintrin.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
+
+#include "fma_peak.h"
 
 namespace {
 
 using clock_type = std::chrono::steady_clock;
 double seconds(clock_type::time_point a, clock_type::time_point b) { return std::chrono::duration<double>(b - a).count(); }
-
-// ----- FMA peak ----------------------------------------------------------------------------------------
-
-// kChains independent chains of FMAs: enough to cover the FMA latency on two pipes, few enough that
-// the chains and the two constants stay in registers (16 with AVX2, 32 with AVX-512).
-constexpr int kChains = 12;
-
-__attribute__((target("avx512f"))) double fmaLoop512(long iters) {
-    __m512 acc[kChains];
-    for (int i = 0; i < kChains; ++i) acc[i] = _mm512_set1_ps(float(i));
-    const __m512 a = _mm512_set1_ps(0.999999f), b = _mm512_set1_ps(1e-7f);
-    for (long it = 0; it < iters; ++it)
-        for (int i = 0; i < kChains; ++i) acc[i] = _mm512_fmadd_ps(acc[i], a, b);
-    float sum = 0.0f, out[16];
-    for (int i = 0; i < kChains; ++i) {
-        _mm512_storeu_ps(out, acc[i]);
-        sum += out[0];
-    }
-    return double(sum);
-}
-__attribute__((target("avx2,fma"))) double fmaLoop256(long iters) {
-    __m256 acc[kChains];
-    for (int i = 0; i < kChains; ++i) acc[i] = _mm256_set1_ps(float(i));
-    const __m256 a = _mm256_set1_ps(0.999999f), b = _mm256_set1_ps(1e-7f);
-    for (long it = 0; it < iters; ++it)
-        for (int i = 0; i < kChains; ++i) acc[i] = _mm256_fmadd_ps(acc[i], a, b);
-    float sum = 0.0f, out[8];
-    for (int i = 0; i < kChains; ++i) {
-        _mm256_storeu_ps(out, acc[i]);
-        sum += out[0];
-    }
-    return double(sum);
-}
-
-volatile double gSink = 0.0;
-
-// FMA lanes per second (one lane-FMA = one multiply-add) on `threads` threads with `width`-wide vectors
-// (16: AVX-512, 8: AVX2).
-double fmaPeak(int threads, int width) {
-    const long iters = 20'000'000;
-    double best = 0.0;
-    for (int rep = 0; rep < 3; ++rep) {
-        auto t0 = clock_type::now();
-        std::vector<std::thread> pool;
-        for (int t = 0; t < threads; ++t)
-            pool.emplace_back([&] {
-                double s = width == 16 ? fmaLoop512(iters) : fmaLoop256(iters);
-                gSink = gSink + s;
-            });
-        for (auto& t : pool) t.join();
-        double dt = seconds(t0, clock_type::now());
-        best = std::max(best, double(iters) * kChains * width * threads / dt);
-    }
-    return best;
-}
 
 // ----- network evaluation --------------------------------------------------------------------------------
 
@@ -222,7 +168,8 @@ int main(int argc, char** argv) {
         // The peak of the widest vectors this CPU has, and of AVX2's, measured now; each kernel is also
         // given as a fraction of the peak of its own width.
         const int widest = nradKernelSupported(NRAD_KERNEL_AVX512) ? 16 : 8;
-        const double peak = fmaPeak(threads, widest), peak256 = widest == 16 ? fmaPeak(threads, 8) : peak;
+        const double peak = fma_peak::fmaPeak(threads, widest),
+                     peak256 = widest == 16 ? fma_peak::fmaPeak(threads, 8) : peak;
         std::printf("\n%d thread(s): FMA peak %.2f G lane-FMA/s (%d-wide vectors) = %.1f M evaluations/s at 108 FMA each; "
                     "8-wide: %.2f G lane-FMA/s\n",
                     threads, peak * 1e-9, widest, peak / 108.0 * 1e-6, peak256 * 1e-9);
@@ -254,7 +201,7 @@ int main(int argc, char** argv) {
             probeLookup(g, &incoherent.p[3 * i], &incoherent.d[3 * i], out.data());
             acc += out[0];
         }
-        gSink = gSink + acc;
+        fma_peak::gSink = fma_peak::gSink + acc;
         best = std::max(best, double(points) / seconds(t0, clock_type::now()));
     }
     NradKernel auto_ = nradActiveKernel();
