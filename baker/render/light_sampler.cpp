@@ -85,12 +85,40 @@ size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
 
 LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (lights_.empty()) return LightSample{};
+    const float u0 = u.x;
     size_t i = pickAndRemap(cdf_, u.x);
+    const Group& group = groups_[groupOfEntry_[i]];
+    if (group.parallelogram && group.entries[1] == group.entries[0] + 1) {
+        // The quad's two triangles are neighbours in the CDF: rescale the pick over both and sample the quad.
+        size_t a = group.entries[0], b = group.entries[1];
+        double lo = a > 0 ? cdf_[a - 1] : 0.0, width = cdf_[b] - lo;
+        u.x = width > 0.0 ? float(std::clamp((double(u0) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
+        return sampleParallelogram(group, p, u, true);
+    }
     return sampleEntry(i, pickProbability(i), p, u);
+}
+
+LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u,
+                                              bool globalPick) const {
+    // Uniform by area over the whole quad with one 2D sample, so that stratified samples stay stratified
+    // over the quad: the same density as picking one of its two equal triangles and a point in it, so the
+    // pdfs (pdfTriangle, pdfTriangleInGroup) are those of the triangle the point lands in.
+    const auto& P = scene_.mesh.positions;
+    glm::vec3 pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
+    size_t i = group.entries[u.x + u.y <= 1.0f ? group.cornerEntry : 1 - group.cornerEntry];
+    const glm::uvec3& tri = scene_.mesh.triangles[lights_[i].index];
+    // Barycentrics of pl in the triangle's own vertex order (for emittedRadiance).
+    glm::vec3 e1 = P[tri.y] - P[tri.x], e2 = P[tri.z] - P[tri.x], d = pl - P[tri.x];
+    float d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
+    float d1 = glm::dot(d, e1), d2 = glm::dot(d, e2), den = d11 * d22 - d12 * d12;
+    float b1 = den > 0.0f ? std::clamp((d22 * d1 - d12 * d2) / den, 0.0f, 1.0f) : 0.0f;
+    float b2 = den > 0.0f ? std::clamp((d11 * d2 - d12 * d1) / den, 0.0f, 1.0f - b1) : 0.0f;
+    return pointOnTriangle(i, globalPick ? pickProbability(i) : pickInGroup_[i], p, pl, b1, b2);
 }
 
 LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const {
     const Group& group = groups_[g];
+    if (group.parallelogram) return sampleParallelogram(group, p, u, false);
     size_t k = pickAndRemap(group.cdf, u.x);
     size_t i = group.entries[k];
     return sampleEntry(i, pickInGroup_[i], p, u);
@@ -106,6 +134,17 @@ LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, 
         float b1 = su * (1.0f - u.y), b2 = su * u.y;  // uniform by area
         const auto& P = scene_.mesh.positions;
         glm::vec3 pl = (1.0f - b1 - b2) * P[tri.x] + b1 * P[tri.y] + b2 * P[tri.z];
+        return pointOnTriangle(i, pick, p, pl, b1, b2);
+    }
+    return punctualSample(e, pick, p);
+}
+
+LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1,
+                                          float b2) const {
+    LightSample ls;
+    if (!(pick > 0.0f)) return ls;
+    const Entry& e = lights_[i];
+    {
         glm::vec3 nl = scene_.mesh.geometricNormal(e.index);
         glm::vec3 d = pl - p;
         float dist2 = glm::dot(d, d);
@@ -126,6 +165,10 @@ LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, 
         if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
         return ls;
     }
+}
+
+LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::vec3& p) const {
+    LightSample ls;
     const PunctualLight& l = scene_.lights[e.index];
     ls.delta = true;
     ls.pdf = pick;
@@ -336,8 +379,43 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
             pickInGroup_[i] = float(power[i] / g.power);
         }
         g.cdf.back() = 1.0;
+        detectParallelogram(g, power);
         groups_.push_back(std::move(g));
     }
+}
+
+void LightSampler::detectParallelogram(Group& g, const std::vector<double>& power) const {
+    // Two emissive triangles of one untextured material with equal power (so equal area), sharing an edge
+    // (a, b), whose other corners c and d satisfy c + d = a + b.
+    if (g.entries.size() != 2 || !g.planar) return;
+    const Entry &ea = lights_[g.entries[0]], &eb = lights_[g.entries[1]];
+    if (!ea.triangle || !eb.triangle) return;
+    const auto& mesh = scene_.mesh;
+    if (mesh.materialIds[ea.index] != mesh.materialIds[eb.index]) return;
+    if (scene_.materials[mesh.materialIds[ea.index]].emissiveTexture.valid()) return;
+    if (!(std::abs(power[g.entries[0]] / g.power - 0.5) < 1e-4)) return;
+    const glm::uvec3 ta = mesh.triangles[ea.index], tb = mesh.triangles[eb.index];
+    uint32_t va[3] = {ta.x, ta.y, ta.z}, vb[3] = {tb.x, tb.y, tb.z};
+    uint32_t shared[3], c = 0, d = 0;
+    int nShared = 0;
+    for (uint32_t v : va) {
+        if (v == vb[0] || v == vb[1] || v == vb[2])
+            shared[nShared++] = v;
+        else
+            c = v;
+    }
+    if (nShared != 2) return;
+    for (uint32_t v : vb)
+        if (v != shared[0] && v != shared[1]) d = v;
+    const glm::vec3 &a = mesh.positions[shared[0]], &b = mesh.positions[shared[1]], &pc = mesh.positions[c],
+                    &pd = mesh.positions[d];
+    float size = glm::length(a - pc) + glm::length(b - pc);
+    if (!(size > 0.0f) || !(glm::length(pc + pd - a - b) <= 1e-5f * size)) return;
+    g.parallelogram = true;
+    g.corner = pc;
+    g.edgeU = a - pc;
+    g.edgeV = b - pc;
+    g.cornerEntry = 0;  // the first entry's triangle (c, a, b) holds the corner
 }
 
 }  // namespace nrad

@@ -60,6 +60,8 @@ public:
     bool groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const;
     // Bit g set for every group g that groupCanContribute (at most kMaxLightGroups groups).
     uint64_t candidateGroups(const glm::vec3& p, const glm::vec3& ng) const;
+    // Whether group g is two triangles forming a parallelogram, sampled as one quad (sample, sampleGroup).
+    bool groupIsParallelogram(size_t g) const { return groups_[g].parallelogram; }
     // Samples a point of group g (entry by power within the group, u.x reused as in sample()); the pdf does
     // not include the probability of having chosen the group.
     LightSample sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const;
@@ -81,12 +83,22 @@ private:
         bool directional = false;  // holds a directional light: contributes wherever its direction allows
         bool planar = false;  // one-sided triangles that share one normal (`normal`)
         glm::vec3 normal{0.0f};
+        // Two triangles forming a parallelogram (a quad light): corner + u edgeU + v edgeV, u + v <= 1 in
+        // entries[cornerEntry]; sampled as one quad (sampleGroup).
+        bool parallelogram = false;
+        glm::vec3 corner{0.0f}, edgeU{0.0f}, edgeV{0.0f};
+        size_t cornerEntry = 0;
     };
     struct Entry {
         bool triangle;
         uint32_t index;  // triangle index or index into Scene::lights
         float area;  // triangles only
     };
+    LightSample pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const;
+    LightSample punctualSample(const Entry& e, float pick, const glm::vec3& p) const;
+    void detectParallelogram(Group& g, const std::vector<double>& power) const;
+    // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
+    LightSample sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
     const Scene& scene_;
     std::vector<Entry> lights_;
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1

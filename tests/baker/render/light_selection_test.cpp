@@ -16,6 +16,7 @@
 #include "baker/util/optim.h"
 #include "baker/util/threads.h"
 #include "support/test_paths.h"
+#include "support/test_scenes.h"
 
 namespace nrad {
 namespace {
@@ -134,6 +135,60 @@ TEST(NeeNetwork, GradientMatchesFiniteDifferences) {
         compared += grad[i] != 0.0f;
     }
     EXPECT_GT(compared, 50);
+}
+
+// Closed form: point-to-rectangle form factor for a point under a corner of a parallel a x b rectangle at
+// height h (X = a / h, Y = b / h).
+double cornerFormFactor(double X, double Y) {
+    const double pi = 3.14159265358979323846;
+    double sx = std::sqrt(1.0 + X * X), sy = std::sqrt(1.0 + Y * Y);
+    return (X / sx * std::atan(Y / sx) + Y / sy * std::atan(X / sy)) / (2.0 * pi);
+}
+
+TEST(QuadLights, IrradianceUnderAQuadLightMatchesTheFormFactor) {
+    // A 2 x 1 one-sided quad light of radiance Le at height h over the centre of a Lambertian plane of
+    // albedo a: the plane's radiance there is a Le F, F the form factor (four corner rectangles of 1 x 0.5).
+    // Checked through the power sampler (one triangle, then a point in it) and through the light groups
+    // (uniform selection: the quad sampled as one parallelogram), direct light only.
+    const float a = 0.5f, h = 1.0f, Le = 3.0f;
+    Scene scene = test::makeLitPlane(a);
+    scene.cameras[0].xmag = scene.cameras[0].ymag = 0.01f;  // a tiny patch under the light's centre,
+    scene.cameras[0].position.z = 0.5f;                      // seen from below the light
+    Material light;
+    light.baseColor = glm::vec3(0.0f);
+    light.emission = glm::vec3(Le);
+    scene.materials.push_back(light);
+    TriangleMesh& mesh = scene.mesh;
+    uint32_t base = uint32_t(mesh.positions.size());
+    for (glm::vec2 c : {glm::vec2(-1, -0.5f), glm::vec2(1, -0.5f), glm::vec2(1, 0.5f), glm::vec2(-1, 0.5f)}) {
+        mesh.positions.emplace_back(c.x, c.y, h);
+        mesh.normals.emplace_back(0, 0, -1);
+        mesh.uv0.emplace_back(0.0f);
+        mesh.uv1.emplace_back(0.0f);
+    }
+    mesh.triangles.push_back({base, base + 2, base + 1});  // wound so that the light faces -z
+    mesh.triangles.push_back({base, base + 3, base + 2});
+    mesh.materialIds.push_back(1);
+    mesh.materialIds.push_back(1);
+    scene.updateBounds();
+    const double expected = a * Le * 4.0 * cornerFormFactor(1.0 / h, 0.5 / h);
+
+    Accel accel(scene.mesh);
+    LightSampler lights(scene);
+    ASSERT_EQ(lights.groupCount(), 1u);
+    EXPECT_TRUE(lights.groupIsParallelogram(0));
+    RenderSettings s;
+    s.width = s.height = 4;
+    s.spp = 1024;
+    s.maxDepth = 2;
+    for (NeeMode mode : {NeeMode::Power, NeeMode::Uniform}) {
+        NeeSettings ns;
+        ns.mode = mode;
+        LightSelector selector(lights, scene.bounds, ns);
+        PathTracer tracer(scene, accel, lights, &selector);
+        Image image = tracer.render(scene.cameras[0], s);
+        EXPECT_NEAR(image.mean().x, expected, 2e-3 * expected) << neeModeName(mode);
+    }
 }
 
 struct Rig {
