@@ -39,6 +39,7 @@ struct RenderOptions {
     NeeMode nee = NeeMode::Power;
     float neeMix = NeeSettings{}.mix;
     uint32_t neeWarmup = NeeSettings{}.warmupSteps;
+    int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
 };
 
@@ -116,6 +117,7 @@ int runRender(const RenderOptions& o) {
     nee.mode = o.nee;
     nee.mix = o.neeMix;
     nee.warmupSteps = o.neeWarmup;
+    nee.quantum = o.neeQuantum;
     nee.seed = o.seed;
     LightSelector selector(lights, scene.bounds, nee);
     PathTracer tracer(scene, accel, lights, &selector);
@@ -197,6 +199,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "with the network fixed (default 1024); 0 = train throughout the render and keep every sample "
                     "(the paper's variant)")
         ->check(CLI::Range(0, 1 << 24));
+    cmd->add_option("--nee-quantum", opts->neeQuantum,
+                    "Learned selection: round the probabilities to whole units of 1/Q, at least one per light that "
+                    "can contribute (default 64: best from about 32 spp on); 0 = no rounding (better for a few spp)")
+        ->check(CLI::Range(0, 1 << 20));
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");

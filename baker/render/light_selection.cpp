@@ -291,6 +291,7 @@ bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const 
     const float mix = settings_.mix, share = mix / float(count);
     for (size_t g = 0; g < G; ++g)
         if (mask >> g & 1u) probs[g] = (1.0f - mix) * probs[g] + share;
+    quantize(probs, G, mask, count);
     if (record) {
         std::copy(x, x + kNeeInputs, record->input);
         record->candidates = mask;
@@ -298,6 +299,37 @@ bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const 
         record->weight = 0.0f;
     }
     return true;
+}
+
+void LightSelector::quantize(float* probs, size_t G, uint64_t mask, int count) const {
+    // Whole units of 1 / quantum, at least one per candidate, the rest by largest remainder (ties: lower
+    // group first); the units add up to the quantum exactly.
+    const int U = settings_.quantum;
+    if (U <= 0 || count > U) return;
+    int units[LightSampler::kMaxLightGroups] = {}, total = 0;
+    float rem[LightSampler::kMaxLightGroups] = {};
+    for (size_t g = 0; g < G; ++g)
+        if (mask >> g & 1u) {
+            float scaled = probs[g] * float(U);
+            units[g] = std::max(1, int(scaled));
+            rem[g] = scaled - float(units[g]);
+            total += units[g];
+        }
+    while (total != U) {
+        int best = -1;
+        for (size_t g = 0; g < G; ++g) {
+            if (!(mask >> g & 1u)) continue;
+            bool better = total < U ? (best < 0 || rem[g] > rem[best]) : (units[g] > 1 && (best < 0 || rem[g] < rem[best]));
+            if (better) best = int(g);
+        }
+        if (best < 0) return;  // cannot happen: count <= U
+        if (total < U) {
+            ++units[best], rem[best] -= 1.0f, ++total;
+        } else {
+            --units[best], rem[best] += 1.0f, --total;
+        }
+    }
+    for (size_t g = 0; g < G; ++g) probs[g] = (mask >> g & 1u) ? float(units[g]) / float(U) : 0.0f;
 }
 
 void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale, int maxSteps) {

@@ -90,20 +90,9 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         LightSample ls;
         if (selector_ && groups > 0) {
             recordHere = selector_->distribution(si.p, si.ng, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
-            // Invert the CDF of probs with uPick, then reuse uPick within the group. A learned distribution
-            // is laid out most probable first: the likeliest lights then get the intervals nearest 0. Of a
-            // pixel's 2^m stratified pick samples, an interval [0, b) holds the exact share to within one
-            // sample and its points are well spread over the light; an interval inside [0, 1) is off by up
-            // to two. Split-rooms, 32 spp: RMSE 2.26-2.63x below uniform's in group order, 2.43-2.72x most
-            // probable first (docs/results.md).
+            // Invert the CDF of probs with uPick, then reuse uPick within the group.
             float acc = 0.0f, before = 0.0f;
-            uint8_t order[LightSampler::kMaxLightGroups];
-            for (size_t g = 0; g < groups; ++g) order[g] = uint8_t(g);
-            if (selector_->mode() == NeeMode::Learned)  // insertion sort: stable, no allocation, few groups
-                for (size_t k = 1; k < groups; ++k)
-                    for (size_t j = k; j > 0 && probs[order[j]] > probs[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
-            for (size_t k = 0; k < groups; ++k) {
-                size_t g = order[k];
+            for (size_t g = 0; g < groups; ++g) {
                 if (!(probs[g] > 0.0f)) continue;
                 chosen = int(g);
                 before = acc;

@@ -8,7 +8,7 @@
 // chosen at each pixel's first hit. All modes run through the same round-based renderer in one process.
 //
 // Usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] [--mix M]
-//                  [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--seed S] [--out DIR]
+//                  [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--quantum Q] [--seed S] [--out DIR]
 //
 // Modes: uniform, power, learned (warm-up of --warmup training steps on camera paths, then the network frozen;
 // the default), learned-online (the paper's variant: trained between rounds throughout, every sample kept),
@@ -82,6 +82,7 @@ int main(int argc, char** argv) {
     uint32_t warmup = defaults.warmupSteps;
     uint32_t seed = 0;
     float learningRate = defaults.learningRate;
+    int quantum = defaults.quantum;
     for (int i = 1; i < argc; ++i) {
         auto next = [&]() { return i + 1 < argc ? argv[++i] : (std::fprintf(stderr, "missing value\n"), std::exit(2), nullptr); };
         if (!std::strcmp(argv[i], "--width")) width = std::atoi(next());
@@ -94,11 +95,12 @@ int main(int argc, char** argv) {
         else if (!std::strcmp(argv[i], "--train-batches")) trainBatches = std::atoi(next());
         else if (!std::strcmp(argv[i], "--warmup")) warmup = uint32_t(std::strtoul(next(), nullptr, 10));
         else if (!std::strcmp(argv[i], "--lr")) learningRate = float(std::atof(next()));
+        else if (!std::strcmp(argv[i], "--quantum")) quantum = std::atoi(next());
         else if (!std::strcmp(argv[i], "--seed")) seed = uint32_t(std::strtoul(next(), nullptr, 10));
         else if (argv[i][0] != '-') scenePath = argv[i];
         else {
             std::fprintf(stderr, "usage: nee_bench [scene.gltf] [--width W] [--max-spp N] [--ref-spp N] [--max-depth D] "
-                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--seed S] [--out DIR]\n");
+                                 "[--mix M] [--network-vertices N] [--train-batches N] [--warmup STEPS] [--lr R] [--quantum Q] [--seed S] [--out DIR]\n");
             return 2;
         }
     }
@@ -199,6 +201,7 @@ int main(int argc, char** argv) {
         ns.warmupSteps = run.warmup;
         ns.seed = seed;
         ns.learningRate = learningRate;
+        ns.quantum = quantum;
         LightSelector selector(lights, scene.bounds, ns);
         if (run.mix >= 1.0f) selector.setTraining(false);
         PathTracer tracer(scene, accel, lights, &selector);

@@ -340,7 +340,21 @@ TEST(LearnedNee, LearnsTheVisibleLightsOfEachRoom) {
                 glm::vec3 wo = glm::normalize(eye - p);
                 if (glm::dot(wo, nrm) <= 0.0f) wo = nrm;
                 float probs[LightSampler::kMaxLightGroups];
-                selector->distribution(p, nrm, nrm, wo, 0, probs, nullptr);
+                // The network's own distribution over the candidates (before the uniform share and the
+                // rounding to units of 1/64, which alone give six hidden lights 6/64).
+                selector->networkDistribution(p, nrm, wo, selector->candidates(p, nrm), probs);
+                // What is sampled: whole units of 1/64, at least one per candidate, adding up to one.
+                float used[LightSampler::kMaxLightGroups];
+                ASSERT_TRUE(selector->distribution(p, nrm, nrm, wo, 0, used, nullptr));
+                uint64_t cand = selector->candidates(p, nrm);
+                int unitSum = 0;
+                for (size_t g = 0; g < rig.lights.groupCount(); ++g) {
+                    float units = used[g] * 64.0f;
+                    ASSERT_EQ(units, std::round(units));
+                    ASSERT_EQ(units >= 1.0f, bool(cand >> g & 1u));
+                    unitSum += int(units);
+                }
+                ASSERT_EQ(unitSum, 64);
                 mass += probs[2 * roomIndex] + probs[2 * roomIndex + 1];
                 ++n;
             }
