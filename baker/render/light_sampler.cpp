@@ -74,11 +74,16 @@ namespace {
 // Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
 // pick sample is reused as the first coordinate of the point on the light, so a stratified pick dimension
 // also stratifies the points within each light.
+// u rescaled from [lo, lo + width) to [0, 1).
+float rescale(float u, double lo, double width) {
+    return width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
+}
+
 size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
     size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), double(u)) - cdf.begin());
     i = std::min(i, cdf.size() - 1);
-    double lo = i > 0 ? cdf[i - 1] : 0.0, width = cdf[i] - lo;
-    u = width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
+    double lo = i > 0 ? cdf[i - 1] : 0.0;
+    u = rescale(u, lo, cdf[i] - lo);
     return i;
 }
 }  // namespace
@@ -91,8 +96,8 @@ LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (group.parallelogram && group.entries[1] == group.entries[0] + 1) {
         // The quad's two triangles are neighbours in the CDF: rescale the pick over both and sample the quad.
         size_t a = group.entries[0], b = group.entries[1];
-        double lo = a > 0 ? cdf_[a - 1] : 0.0, width = cdf_[b] - lo;
-        u.x = width > 0.0 ? float(std::clamp((double(u0) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
+        double lo = a > 0 ? cdf_[a - 1] : 0.0;
+        u.x = rescale(u0, lo, cdf_[b] - lo);
         return sampleParallelogram(group, p, u, true);
     }
     return sampleEntry(i, pickProbability(i), p, u);
@@ -105,7 +110,7 @@ LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec
     // pdfs (pdfTriangle, pdfTriangleInGroup) are those of the triangle the point lands in.
     const auto& P = scene_.mesh.positions;
     glm::vec3 pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
-    size_t i = group.entries[u.x + u.y <= 1.0f ? group.cornerEntry : 1 - group.cornerEntry];
+    size_t i = group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
     const glm::uvec3& tri = scene_.mesh.triangles[lights_[i].index];
     // Barycentrics of pl in the triangle's own vertex order (for emittedRadiance).
     glm::vec3 e1 = P[tri.y] - P[tri.x], e2 = P[tri.z] - P[tri.x], d = pl - P[tri.x];
@@ -144,27 +149,25 @@ LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3&
     LightSample ls;
     if (!(pick > 0.0f)) return ls;
     const Entry& e = lights_[i];
-    {
-        glm::vec3 nl = scene_.mesh.geometricNormal(e.index);
-        glm::vec3 d = pl - p;
-        float dist2 = glm::dot(d, d);
-        if (!(dist2 > 0.0f)) return ls;
-        float dist = std::sqrt(dist2);
-        glm::vec3 wi = d / dist;
-        float cosLight = glm::dot(nl, -wi);
-        bool front = cosLight > 0.0f;
-        if (!front) nl = -nl;
-        float absCos = std::abs(cosLight);
-        if (!(absCos > 0.0f)) return ls;
-        ls.Li = emittedRadiance(scene_, e.index, b1, b2, front);
-        ls.wi = wi;
-        ls.distance = dist;
-        ls.pdf = pick * dist2 / (absCos * e.area);
-        ls.lightPoint = pl;
-        ls.lightNormal = nl;
-        if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
-        return ls;
-    }
+    glm::vec3 nl = scene_.mesh.geometricNormal(e.index);
+    glm::vec3 d = pl - p;
+    float dist2 = glm::dot(d, d);
+    if (!(dist2 > 0.0f)) return ls;
+    float dist = std::sqrt(dist2);
+    glm::vec3 wi = d / dist;
+    float cosLight = glm::dot(nl, -wi);
+    bool front = cosLight > 0.0f;
+    if (!front) nl = -nl;
+    float absCos = std::abs(cosLight);
+    if (!(absCos > 0.0f)) return ls;
+    ls.Li = emittedRadiance(scene_, e.index, b1, b2, front);
+    ls.wi = wi;
+    ls.distance = dist;
+    ls.pdf = pick * dist2 / (absCos * e.area);
+    ls.lightPoint = pl;
+    ls.lightNormal = nl;
+    if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
+    return ls;
 }
 
 LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::vec3& p) const {
@@ -414,8 +417,7 @@ void LightSampler::detectParallelogram(Group& g, const std::vector<double>& powe
     g.parallelogram = true;
     g.corner = pc;
     g.edgeU = a - pc;
-    g.edgeV = b - pc;
-    g.cornerEntry = 0;  // the first entry's triangle (c, a, b) holds the corner
+    g.edgeV = b - pc;  // the first entry's triangle is (c, a, b): u + v <= 1
 }
 
 }  // namespace nrad

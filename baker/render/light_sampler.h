@@ -84,10 +84,9 @@ private:
         bool planar = false;  // one-sided triangles that share one normal (`normal`)
         glm::vec3 normal{0.0f};
         // Two triangles forming a parallelogram (a quad light): corner + u edgeU + v edgeV, u + v <= 1 in
-        // entries[cornerEntry]; sampled as one quad (sampleGroup).
+        // entries[0]; sampled as one quad (sample, sampleGroup).
         bool parallelogram = false;
         glm::vec3 corner{0.0f}, edgeU{0.0f}, edgeV{0.0f};
-        size_t cornerEntry = 0;
     };
     struct Entry {
         bool triangle;

@@ -132,6 +132,19 @@ NRAD_NEE_INLINE void fmaRow(const float* p, const Vec16& a, Vec16& s) {
     s += w * a;
 }
 
+// One row of a layer's backward pass: g += h delta (the weight gradient of input h) and the row's dot product
+// with delta (the input's delta before its ReLU), for V vectors of 16 outputs.
+template <int V>
+NRAD_NEE_INLINE float backRow(const float* row, float* g, float h, const Vec16* delta) {
+    Vec16 hv = Vec16{} + h, s = Vec16{};
+#pragma GCC unroll 4
+    for (int v = 0; v < V; ++v) {
+        addTo16(g + 16 * v, hv * delta[v]);
+        fmaRow(row + 16 * v, delta[v], s);
+    }
+    return laneSum(s);
+}
+
 // dLoss/dParams for one input, in vectors of 16 over each layer's outputs (the sums over outputs that give
 // the previous layer's deltas are kept in vector lanes and added up at the end of each row).
 template <int K>
@@ -148,15 +161,8 @@ NRAD_NEE_INLINE void backwardPadded(const float* P, const float* x, const NeeNet
         addTo16(grad + b3 + 16 * v, dl[v]);
     }
     for (int i = 0; i < kNeeHidden; ++i) {
-        const float* row = P + w3 + size_t(i) * K;
-        float* g = grad + w3 + size_t(i) * K;
-        Vec16 h = Vec16{} + a.h2[i], s = Vec16{};
-#pragma GCC unroll 4
-        for (int v = 0; v < VK; ++v) {
-            addTo16(g + 16 * v, h * dl[v]);
-            fmaRow(row + 16 * v, dl[v], s);
-        }
-        d2[i] = a.h2[i] > 0.0f ? laneSum(s) : 0.0f;
+        float s = backRow<VK>(P + w3 + size_t(i) * K, grad + w3 + size_t(i) * K, a.h2[i], dl);
+        d2[i] = a.h2[i] > 0.0f ? s : 0.0f;
     }
     Vec16 d2v[VH];
 #pragma GCC unroll 4
@@ -164,19 +170,9 @@ NRAD_NEE_INLINE void backwardPadded(const float* P, const float* x, const NeeNet
         load16(d2v[v], d2 + 16 * v);
         addTo16(grad + b2 + 16 * v, d2v[v]);
     }
-    for (int i = 0; i < kNeeHidden; ++i) {
-        d1[i] = 0.0f;
-        if (a.h1[i] <= 0.0f) continue;
-        const float* row = P + w2 + size_t(i) * kNeeHidden;
-        float* g = grad + w2 + size_t(i) * kNeeHidden;
-        Vec16 h = Vec16{} + a.h1[i], s = Vec16{};
-#pragma GCC unroll 4
-        for (int v = 0; v < VH; ++v) {
-            addTo16(g + 16 * v, h * d2v[v]);
-            fmaRow(row + 16 * v, d2v[v], s);
-        }
-        d1[i] = laneSum(s);
-    }
+    for (int i = 0; i < kNeeHidden; ++i)  // rows of inactive units add nothing to the gradient: skipped
+        d1[i] = a.h1[i] > 0.0f ? backRow<VH>(P + w2 + size_t(i) * kNeeHidden, grad + w2 + size_t(i) * kNeeHidden, a.h1[i], d2v)
+                               : 0.0f;
     Vec16 d1v[VH];
 #pragma GCC unroll 4
     for (int v = 0; v < VH; ++v) {

@@ -7,8 +7,9 @@
 //            groups, trained online on the contributions the renderer observes (visibility included).
 // The learned distribution is restricted to the groups that can contribute at all (LightSampler::
 // groupCanContribute) and mixed with a uniform share over them, so every light that can contribute keeps a
-// probability of at least mix / candidates: estimates divide by the probability actually used and stay
-// unbiased. Where at most one group can contribute, the network is not evaluated.
+// probability of at least mix / candidates, then rounded to whole units of 1 / quantum (NeeSettings):
+// estimates divide by the probability actually used and stay unbiased. Where at most one group can
+// contribute, the network is not evaluated.
 #pragma once
 
 #include <cstdint>

@@ -35,11 +35,12 @@ void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>* records, Ray
     for (uint64_t b = 0; b < batches; ++b) counters += batchCounters[b];
 }
 
-// Learning-rate schedule of a warm-up (training that ends with the network frozen): linear decay from the
-// full rate to zero, so the frozen weights are not one noisy step's. Measured on split-rooms
-// (docs/results.md): RMSE at 32 spp 2.5-2.7x below uniform's against 2.0-2.6x at a constant rate.
-float warmupLearningRateScale(uint64_t begin, uint64_t paths) {
-    return paths > 0 ? 1.0f - float(double(begin) / double(paths)) : 1.0f;
+// Learning-rate schedule of a warm-up (training that ends with the network frozen), `done` of `total` (paths
+// or steps) behind: linear decay from the full rate to zero, so the frozen weights are not one noisy step's.
+// Measured on split-rooms (docs/results.md): RMSE at 32 spp 2.45-2.66x below uniform's against 1.97-2.57x
+// at a constant rate.
+float warmupLearningRateScale(uint64_t done, uint64_t total) {
+    return total > 0 ? 1.0f - float(double(done) / double(total)) : 1.0f;
 }
 
 // Mini-batches of 64 paths in a warm-up round: enough for trainBatches x 64 useful records at the previous
@@ -90,6 +91,17 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
     const uint64_t roundSize = uint64_t(trainee ? trainee->settings().batchesPerRound : 16) * 64;
     std::vector<NeeRecord> records;
     RayCounters counters;
+    // One camera path through pixel order[k % P] with its sampler (stream seed, sample index).
+    auto cameraPath = [&](uint64_t k, uint32_t seed, uint32_t index, NeeTrace& nee, RayCounters& c) {
+        uint32_t pixel = order[k % P];
+        int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
+        Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), seed), index);
+        glm::vec2 jitter = sampler.get2D();
+        glm::vec3 o, d;
+        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+        nee.firstLight = -1;
+        return tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
+    };
     auto train = [&](float lrScale, int maxSteps) {
         auto t = Clock::now();
         trainee->train(records, lrScale, maxSteps);
@@ -110,20 +122,14 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
         for (uint64_t round = 0, taken = 0; taken < target && round < maxRounds && emptyRounds < 8; ++round) {
             uint64_t paths = 64 * warmupBatches(ns.trainBatches, yield);
             runRound(next, next + paths, &records, warmupRays, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
-                uint32_t pixel = order[k % P];
-                int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
-                Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed ^ kWarmupSeed), uint32_t(k / P));
-                glm::vec2 jitter = sampler.get2D();
-                glm::vec3 o, d;
-                rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
-                tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
+                cameraPath(k, settings.seed ^ kWarmupSeed, uint32_t(k / P), nee, c);
             });
             next += paths;
             yield = double(records.size()) / double(paths);
             emptyRounds = records.empty() ? emptyRounds + 1 : 0;
             ++result.stats.rounds;
             result.stats.records += records.size();
-            train(1.0f - float(double(taken) / double(target)), int(std::min<uint64_t>(target - taken, 1u << 30)));
+            train(warmupLearningRateScale(taken, target), int(std::min<uint64_t>(target - taken, 1u << 30)));
             taken = trainee->trainingSteps() + trainee->rejectedSteps() - steps0;
         }
         trainee->setTraining(false);
@@ -141,13 +147,7 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
             uint64_t end = std::min(P, begin + passRound);
             runRound(begin, end, online ? &records : nullptr, counters, [&](uint64_t k, NeeTrace& nee, RayCounters& c) {
                 uint32_t pixel = order[k];
-                int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
-                Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), settings.seed), uint32_t(s));
-                glm::vec2 jitter = sampler.get2D();
-                glm::vec3 o, d;
-                rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
-                nee.firstLight = -1;
-                glm::vec3 L = tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
+                glm::vec3 L = cameraPath(k, settings.seed, uint32_t(s), nee, c);
                 if (finite3(L))
                     sum[pixel] += glm::dvec3(L);
                 else
