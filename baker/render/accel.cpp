@@ -24,14 +24,14 @@ void errorCallback(void*, RTCError code, const char* message) {
     (void)message;  // errors are checked with rtcGetDeviceError where they matter
 }
 
-inline void initRay(RTCRay& ray, const glm::vec3& o, const glm::vec3& d, float tfar) {
+inline void initRay(RTCRay& ray, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
     ray.org_x = o.x;
     ray.org_y = o.y;
     ray.org_z = o.z;
     ray.dir_x = d.x;
     ray.dir_y = d.y;
     ray.dir_z = d.z;
-    ray.tnear = 0.0f;
+    ray.tnear = tnear;
     ray.tfar = tfar;
     ray.time = 0.0f;
     ray.mask = 0xFFFFFFFFu;  // Debian's Embree is built with ray masks: a zero mask misses everything
@@ -78,11 +78,11 @@ Accel::Accel(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
 
 Accel::~Accel() = default;
 
-Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float tfar) const {
+Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
-    initRay(rh.ray, origin, direction, tfar);
+    initRay(rh.ray, origin, direction, tnear, tfar);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
@@ -97,11 +97,11 @@ Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float 
     return hit;
 }
 
-bool Accel::occluded(const glm::vec3& origin, const glm::vec3& direction, float tfar) const {
+bool Accel::occluded(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay ray;
-    initRay(ray, origin, direction, tfar);
+    initRay(ray, origin, direction, tnear, tfar);
     rtcOccluded1(impl_->scene, &context, &ray);
     return ray.tfar < 0.0f;  // Embree marks an occluded ray with tfar = -inf
 }
@@ -114,12 +114,12 @@ size_t Accel::traceRaw(const RecordedRay* rays, size_t count) const {
         const RecordedRay& r = rays[i];
         if (r.shadow) {
             RTCRay ray;
-            initRay(ray, r.origin, r.direction, r.tfar);
+            initRay(ray, r.origin, r.direction, r.tnear, r.tfar);
             rtcOccluded1(impl_->scene, &context, &ray);
             hits += ray.tfar < 0.0f;
         } else {
             RTCRayHit rh;
-            initRay(rh.ray, r.origin, r.direction, r.tfar);
+            initRay(rh.ray, r.origin, r.direction, r.tnear, r.tfar);
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
             rtcIntersect1(impl_->scene, &context, &rh);

@@ -24,6 +24,7 @@ struct Hit {
 struct RecordedRay {
     glm::vec3 origin;
     glm::vec3 direction;
+    float tnear;
     float tfar;
     bool shadow;
 };
@@ -35,11 +36,11 @@ public:
     Accel(const Accel&) = delete;
     Accel& operator=(const Accel&) = delete;
 
-    // Closest hit along origin + t * direction for t in [0, tfar).
-    Hit intersect(const glm::vec3& origin, const glm::vec3& direction,
+    // Closest hit along origin + t * direction for t in [tnear, tfar).
+    Hit intersect(const glm::vec3& origin, const glm::vec3& direction, float tnear = 0.0f,
                   float tfar = std::numeric_limits<float>::infinity()) const;
-    // True if anything blocks the segment [0, tfar).
-    bool occluded(const glm::vec3& origin, const glm::vec3& direction, float tfar) const;
+    // True if anything blocks the segment [tnear, tfar).
+    bool occluded(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const;
 
     // Replays recorded rays through plain rtcIntersect1 / rtcOccluded1 and returns the number of hits:
     // the raw Embree throughput baseline the path tracer is measured against.

@@ -32,10 +32,39 @@ constexpr int kRouletteStart = 3;
 
 }  // namespace
 
+void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& origin, glm::vec3& direction,
+               float& tnear, float& tfar) {
+    // The segment from the shading point to the light point itself, without the parts within rayOffset of
+    // either end's surface (measured across the surface, so a grazing ray stops short of the emitter's
+    // plane by the same margin as a perpendicular one). (The origin used to be moved off the surface while
+    // the ray was still aimed from the unmoved point: grazing rays met the emitter's own plane before their
+    // end, and light seen at less than about 16 degrees was lost; issue 12.) The light's margin is that of
+    // the larger coordinates of the two ends, since the precision of a hit along the segment is that of its
+    // end points.
+    origin = si.p;
+    direction = ls.wi;
+    tnear = si.spawnDistance(ls.wi);
+    if (!std::isfinite(ls.distance)) {  // directional light: the ray leaves the scene
+        tfar = std::numeric_limits<float>::infinity();
+        return;
+    }
+    const float margin = std::max(rayOffset(ls.lightPoint), rayOffset(si.p));
+    if (ls.delta) {
+        tfar = ls.distance - margin;  // a punctual light has no surface, but may sit on one: stop short of it
+        return;
+    }
+    const float c = std::abs(glm::dot(ls.wi, ls.lightNormal));
+    tfar = c > 0.0f ? ls.distance - margin / c : 0.0f;
+}
+
+namespace {
+
+}  // namespace
+
 glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
                                RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee) const {
     ++counters.primary;
-    if (record) record->push_back({origin, direction, std::numeric_limits<float>::infinity(), false});
+    if (record) record->push_back({origin, direction, 0.0f, std::numeric_limits<float>::infinity(), false});
     Hit hit = accel_.intersect(origin, direction);
     if (!hit.valid()) return glm::vec3(0.0f);
     return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record, nee);
@@ -113,15 +142,14 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {
                 glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
                 if (!isBlack(f)) {
-                    glm::vec3 o = si.spawnOrigin(ls.wi);
-                    float tfar = std::numeric_limits<float>::infinity();
-                    if (std::isfinite(ls.distance)) {
-                        // Stop short of the light's own surface.
-                        tfar = glm::length(ls.lightPoint - o) * (1.0f - 1e-4f) - rayOffset(ls.lightPoint);
-                    }
+                    glm::vec3 o, dir;
+                    float tnear, tfar;
+                    shadowRay(si, ls, o, dir, tnear, tfar);
                     ++counters.shadow;
-                    if (record) record->push_back({o, ls.wi, tfar, true});
-                    if (tfar > 0.0f && !accel_.occluded(o, ls.wi, tfar)) {
+                    if (record) record->push_back({o, dir, tnear, tfar, true});
+                    // A segment shorter than the two margins holds no occluder: the light and the point are
+                    // within a margin of each other's planes (and the contribution is about zero).
+                    if (!(tfar > tnear) || !accel_.occluded(o, dir, tnear, tfar)) {
                         float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(si.wo, ls.wi));
                         L += beta * f * ls.Li * (w / ls.pdf);
                         if (recordHere) {
@@ -151,10 +179,10 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
             if (uRoulette >= q) break;
             beta /= q;
         }
-        glm::vec3 origin = si.spawnOrigin(bs.wi);
+        const float tnear = si.spawnDistance(bs.wi);
         ++counters.extension;
-        if (record) record->push_back({origin, bs.wi, std::numeric_limits<float>::infinity(), false});
-        Hit hit = accel_.intersect(origin, bs.wi);
+        if (record) record->push_back({si.p, bs.wi, tnear, std::numeric_limits<float>::infinity(), false});
+        Hit hit = accel_.intersect(si.p, bs.wi, tnear);
         if (!hit.valid()) break;
         si = makeInteraction(scene_, hit, bs.wi);
     }

@@ -61,6 +61,12 @@ struct NeeTrace {
     int firstLight = -1;
 };
 
+// The shadow ray that tests whether light sample `ls` reaches the surface point `si`: origin, unit direction
+// and the interval [tnear, tfar) in which an occluder blocks it (none if tfar <= tnear). Robust at grazing
+// angles and at any scene scale or distance from the origin (issue 12).
+void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& origin, glm::vec3& direction,
+               float& tnear, float& tfar);
+
 class PathTracer {
 public:
     // selector: light selection for NEE; nullptr (or power mode) picks lights by power.

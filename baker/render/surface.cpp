@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace nrad {
 
@@ -27,9 +28,9 @@ float rayOffset(const glm::vec3& p) {
     return std::max(m * 3e-5f, 1e-30f);
 }
 
-glm::vec3 SurfaceInteraction::spawnOrigin(const glm::vec3& w) const {
-    float offset = rayOffset(p);
-    return p + (glm::dot(w, ng) >= 0.0f ? offset : -offset) * ng;
+float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
+    float c = std::abs(glm::dot(w, ng));
+    return c > 0.0f ? rayOffset(p) / c : std::numeric_limits<float>::infinity();
 }
 
 glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front) {
