@@ -166,6 +166,7 @@ LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3&
     ls.pdf = pick * dist2 / (absCos * e.area);
     ls.lightPoint = pl;
     ls.lightNormal = nl;
+    ls.margin = triangleMargin(scene_.mesh, e.index);
     if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
     return ls;
 }
@@ -188,6 +189,7 @@ LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::
     ls.wi = d / dist;
     ls.distance = dist;
     ls.lightPoint = l.position;
+    ls.margin = rayOffset(l.position);
     ls.Li = l.intensity / dist2;
     if (l.type == PunctualLight::Type::Spot) ls.Li *= spotAttenuation(l, -ls.wi);
     return ls;

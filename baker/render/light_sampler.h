@@ -25,6 +25,7 @@ struct LightSample {
     bool delta = false;
     glm::vec3 lightPoint{0.0f};  // sampled point (area and positional lights)
     glm::vec3 lightNormal{0.0f};  // area lights: the emitter's normal on the emitting side
+    float margin = 0.0f;  // area lights: triangleMargin of the emitter's triangle; punctual: rayOffset(position)
 };
 
 class LightSampler {

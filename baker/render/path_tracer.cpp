@@ -34,13 +34,13 @@ constexpr int kRouletteStart = 3;
 
 void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& origin, glm::vec3& direction,
                float& tnear, float& tfar) {
-    // The segment from the shading point to the light point itself, without the parts within rayOffset of
+    // The segment from the shading point to the light point itself, without the parts within a margin of
     // either end's surface (measured across the surface, so a grazing ray stops short of the emitter's
     // plane by the same margin as a perpendicular one). (The origin used to be moved off the surface while
     // the ray was still aimed from the unmoved point: grazing rays met the emitter's own plane before their
-    // end, and light seen at less than about 16 degrees was lost; issue 12.) The light's margin is that of
-    // the larger coordinates of the two ends, since the precision of a hit along the segment is that of its
-    // end points.
+    // end, and light seen at less than about 16 degrees was lost; issue 12.) The light's end takes the
+    // larger of the two ends' margins, since the precision of a hit along the segment is that of the
+    // coordinates of both.
     origin = si.p;
     direction = ls.wi;
     tnear = si.spawnDistance(ls.wi);
@@ -48,7 +48,7 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
         tfar = std::numeric_limits<float>::infinity();
         return;
     }
-    const float margin = std::max(rayOffset(ls.lightPoint), rayOffset(si.p));
+    const float margin = std::max(std::max(ls.margin, rayOffset(ls.lightPoint)), std::max(si.margin, rayOffset(si.p)));
     if (ls.delta) {
         tfar = ls.distance - margin;  // a punctual light has no surface, but may sit on one: stop short of it
         return;

@@ -25,12 +25,18 @@ glm::vec4 lookup(const Scene& scene, const TextureRef& ref, const TriangleMesh& 
 float rayOffset(const glm::vec3& p) {
     float m = std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z)));
     // A few hundred float ulps of the largest coordinate, with a floor for points near the origin.
-    return std::max(m * 3e-5f, 1e-30f);
+    return std::max(m * 4e-6f, 1e-30f);
+}
+
+float triangleMargin(const TriangleMesh& mesh, uint32_t t) {
+    const glm::uvec3& tri = mesh.triangles[t];
+    glm::vec3 m = glm::max(glm::abs(mesh.positions[tri.x]), glm::max(glm::abs(mesh.positions[tri.y]), glm::abs(mesh.positions[tri.z])));
+    return rayOffset(m);
 }
 
 float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
     float c = std::abs(glm::dot(w, ng));
-    return c > 0.0f ? rayOffset(p) / c : std::numeric_limits<float>::infinity();
+    return c > 0.0f ? std::max(margin, rayOffset(p)) / c : std::numeric_limits<float>::infinity();
 }
 
 glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front) {
@@ -82,6 +88,7 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.bsdf.metallic = std::clamp(si.bsdf.metallic, 0.0f, 1.0f);
     si.bsdf.roughness = std::clamp(si.bsdf.roughness, 0.0f, 1.0f);
     si.emission = emittedRadiance(scene, hit.triangle, hit.u, hit.v, si.frontFace);
+    si.margin = triangleMargin(mesh, hit.triangle);
     return si;
 }
 

@@ -20,11 +20,12 @@ struct SurfaceInteraction {
     const Material* material = nullptr;
     BsdfParams bsdf;
     glm::vec3 emission{0.0f};  // radiance emitted towards wo (zero for a single-sided back face)
+    float margin = 0.0f;  // triangleMargin of the triangle hit
 
     // Rays leave the surface from p itself, so their geometry is exact (an origin moved off the surface
-    // sees every emitter from a slightly different place, a bias of about rayOffset(p) / distance: 0.5% at
+    // sees every emitter from a slightly different place, a bias of about the offset / distance: 0.5% at
     // 0.2 m from a light 100 m from the origin; issue 12). Hits closer than this distance along w are not
-    // taken: those within rayOffset(p) of the surface's plane, where the surface itself could be found again.
+    // taken: those within `margin` of the surface's plane, where the surface itself could be found again.
     float spawnDistance(const glm::vec3& w) const;
 };
 
@@ -34,8 +35,15 @@ glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float 
 // Builds the interaction for a hit of a ray travelling along `direction`.
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);
 
-// Offset that keeps a spawned ray off the surface at p; relative to the coordinates' magnitude so it
-// works at any scene scale.
+// A few hundred float ulps of the largest coordinate magnitude of p (with a floor near the origin): a
+// distance beyond the rounding of anything computed from coordinates of that size, at any scene scale.
 float rayOffset(const glm::vec3& p);
+
+// Margin around triangle t's plane within which a ray leaving (or aiming at) a point of it does not look
+// for hits: rayOffset of the largest coordinate of its three vertices. Both the rounding of a point
+// interpolated on the triangle and Embree's rounding of a ray's distance to its plane scale with its
+// vertices' coordinates, not the point's: on a large tilted triangle through the origin, a margin from
+// the point's own coordinates let 46% of the shadow rays near the origin find their own triangle.
+float triangleMargin(const TriangleMesh& mesh, uint32_t t);
 
 }  // namespace nrad
