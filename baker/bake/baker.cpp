@@ -90,6 +90,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     result.timings.training = since(t2);
 
     format::Asset& a = result.asset;
+    a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
     a.grid = grid.grid();
     a.topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
     a.topology.weightEncoding = settings.encoding;

@@ -34,23 +34,14 @@ bool parseLoss(const std::string& name, LossKind& loss) {
 
 void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]) {
     glm::vec3 q = grid.positionInVoxel(p, voxel);
-    in[0] = q.x;
-    in[1] = q.y;
-    in[2] = q.z;
-    in[3] = n.x;
-    in[4] = n.y;
-    in[5] = n.z;
-    in[6] = wo.x;
-    in[7] = wo.y;
-    in[8] = wo.z;
+    const float local[3] = {q.x, q.y, q.z}, normal[3] = {n.x, n.y, n.z}, direction[3] = {wo.x, wo.y, wo.z};
+    eval::encodeInputs(local, normal, direction, in);
 }
 
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]) {
-    glm::vec3 v;
-    for (int c = 0; c < 3; ++c)
-        v[c] = transform == format::OutputTransform::Exponential ? std::max(0.0f, std::expm1(std::min(y[c], 80.0f)))
-                                                                 : std::max(0.0f, y[c]);
-    return scale * v;
+    float rgb[3];
+    eval::decodeOutputs(transform, scale, y, rgb);
+    return glm::vec3(rgb[0], rgb[1], rgb[2]);
 }
 
 double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& reference) {

@@ -152,7 +152,10 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 t.position = p;
                 t.normal = si.ns;
                 t.wo = wo;
-                t.radiance = glm::vec3(sum / double(finite));
+                // The target is the radiance the point scatters, L - Le: its own emission is exact and is
+                // added back by whoever shades (nrad/eval.h, shade()), so no network has to draw an
+                // emitter's edge. Rounding can leave -1 ulp: clamped.
+                t.radiance = glm::max(glm::vec3(sum / double(finite)) - si.emission, glm::vec3(0.0f));
                 // The voxel the runtime will look up for p (the format's rule): a point on a border plane
                 // belongs to the voxel above it, whichever piece it was sampled from.
                 int64_t voxel = grid.voxelOf(p);

@@ -1,7 +1,8 @@
 // Training samples (paper Sec. 5): surface points uniform by area (scrambled Sobol), one outgoing direction
-// each, uniform on the hemisphere around the shading normal, and the radiance L(x, wo) leaving it (full
-// transport) estimated by the path tracer with `paths` paths. Voxels with surface but too few samples get
-// extra points from their own surface (the per-voxel floor).
+// each, uniform on the hemisphere around the shading normal, and the radiance L(x, wo) - Le(x, wo) it
+// scatters (full transport, without its own emission, which is exact and added back when shading) estimated
+// by the path tracer with `paths` paths. Voxels with surface but too few samples get extra points from
+// their own surface (the per-voxel floor).
 #pragma once
 
 #include <cstdint>
@@ -19,7 +20,7 @@ struct TrainingSample {
     glm::vec3 position;  // world space
     glm::vec3 normal;  // unit shading normal, on the side of wo
     glm::vec3 wo;  // unit, away from the surface
-    glm::vec3 radiance;  // mean of the finite path estimates
+    glm::vec3 radiance;  // scattered radiance: mean of the finite path estimates minus the point's emission
     uint32_t voxel;
 };
 

@@ -26,7 +26,7 @@ VoxelGrid::VoxelGrid(const Bounds3& bounds, glm::uvec3 dims) {
 
 int64_t VoxelGrid::voxelOf(const glm::vec3& p) const {
     float q[3] = {p.x, p.y, p.z};
-    return format::voxelIndex(grid_, q);
+    return eval::locate(grid_, q).voxel;
 }
 
 glm::ivec3 VoxelGrid::coordOf(uint32_t voxel) const {
@@ -49,10 +49,10 @@ Bounds3 VoxelGrid::voxelBounds(uint32_t voxel) const {
 
 glm::vec3 VoxelGrid::positionInVoxel(const glm::vec3& p, uint32_t voxel) const {
     glm::ivec3 c = coordOf(voxel);
-    int coord[3] = {c.x, c.y, c.z};
-    float q[3] = {p.x, p.y, p.z}, out[3];
-    format::positionInVoxel(grid_, q, coord, out);
-    return glm::clamp(glm::vec3(out[0], out[1], out[2]), -1.0f, 1.0f);
+    glm::vec3 out;
+    for (int k = 0; k < 3; ++k)
+        out[k] = eval::clampUnit(eval::localCoordinate(p[k], grid_.lower[k], eval::gridFactor(grid_, k), c[k]));
+    return out;
 }
 
 namespace {

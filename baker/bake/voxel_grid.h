@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <nrad/eval.h>
 #include <nrad/format.h>
 
 #include "baker/scene/scene.h"

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <mutex>
 
+#include <nrad/eval.h>
 #include <tbb/parallel_for.h>
 
 #include "baker/render/camera.h"
@@ -19,11 +20,14 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
     FirstHitEvaluator evaluate = [asset](size_t n, const float* p, const float* nrm, const float* d, float* rgb, uint8_t* flags) {
         return nradEvaluateBatch(asset, n, p, nrm, d, rgb, flags);
     };
-    return renderFirstHit(scene, accel, evaluate, camera, settings, image, stats, progress);
+    NradAssetInfo info;
+    if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) return st;
+    const uint32_t contentFlags = (info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u;
+    return renderFirstHit(scene, accel, evaluate, contentFlags, camera, settings, image, stats, progress);
 }
 
-NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, const Camera& camera,
-                          const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
+NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
+                          const Camera& camera, const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
                           const std::function<void(double)>& progress) {
     using clock = std::chrono::steady_clock;
     auto start = clock::now();
@@ -38,7 +42,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
     NeuralRenderStats total;
 
     tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
-        std::vector<float> pos, nrm, dir, rgb;
+        std::vector<float> pos, nrm, dir, rgb, emission;
         std::vector<uint8_t> flags;
         std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
         NeuralRenderStats local;
@@ -49,6 +53,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             pos.clear();
             nrm.clear();
             dir.clear();
+            emission.clear();
             pixelOf.clear();
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
@@ -65,6 +70,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                             pos.push_back(si.p[k]);
                             nrm.push_back(si.ns[k]);
                             dir.push_back(si.wo[k]);
+                            emission.push_back(si.emission[k]);
                         }
                         pixelOf.push_back(uint32_t((y - y0) * ts + (x - x0)));
                     }
@@ -78,7 +84,9 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             if (st != NRAD_OK) failure = st;
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (size_t i = 0; i < n; ++i) {
-                sum[pixelOf[i]] += glm::dvec3(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
+                float L[3];
+                eval::shade(contentFlags, &rgb[3 * i], &emission[3 * i], L);
+                sum[pixelOf[i]] += glm::dvec3(L[0], L[1], L[2]);
                 local.outsideGrid += flags[i] == NRAD_POINT_OUTSIDE_GRID;
                 local.emptyVoxel += flags[i] == NRAD_POINT_EMPTY_VOXEL;
                 local.invalidInput += flags[i] == NRAD_POINT_INVALID_INPUT;

@@ -26,14 +26,15 @@ struct NeuralRenderStats {
 using FirstHitEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals,
                                                    const float* directions, float* rgb, uint8_t* flags)>;
 
-// Renders with primary visibility only, radiance at the first hit from `evaluate`: tile by tile, each
-// tile's hits in one batch. The same sample positions as renderThroughAsset, so any two evaluators render
-// the same hits.
-NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, const Camera& camera,
-                          const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
-                          const std::function<void(double)>& progress = {});
+// Renders with primary visibility only, radiance at the first hit from `evaluate`, shaded by the contract of
+// nrad/eval.h (contentFlags: format::kFlag*; with kFlagScatteredRadiance the hit's own emission towards the
+// camera is added): tile by tile, each tile's hits in one batch. The same sample positions as
+// renderThroughAsset, so any two evaluators render the same hits.
+NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
+                          const Camera& camera, const RenderSettings& settings, Image& image,
+                          NeuralRenderStats* stats = nullptr, const std::function<void(double)>& progress = {});
 
-// Fails with the runtime's status if evaluation fails.
+// The asset's contentFlags decide the shading. Fails with the runtime's status if evaluation fails.
 NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
                               const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
                               const std::function<void(double)>& progress = {});

@@ -231,7 +231,8 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         MethodResult m;
         m.name = "sh-probes";
         NeuralRenderStats st;
-        renderFirstHit(scene, accel, evaluate, camera, fh, m.image, &st);
+        // The probes are fitted to the same scattered-radiance samples as the networks: shaded alike.
+        renderFirstHit(scene, accel, evaluate, format::kFlagScatteredRadiance, camera, fh, m.image, &st);
         score(m, st, r.reference, settings.exposure);
         m.bytes = probes.bytes();
         equalError(m, r.curve);

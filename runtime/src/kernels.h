@@ -5,12 +5,14 @@
 #include <cstddef>
 #include <cstdint>
 
+#include <nrad/eval_constants.h>
+
 namespace nrad::rt {
 
 constexpr int kChunk = 64;  // points per chunk; the kernels process all of it (padding lanes are zeros)
 constexpr int kMaxWidth = 256;
-constexpr int kInputs = 9;
-constexpr int kOutputs = 3;
+constexpr int kInputs = eval::kInputs;
+constexpr int kOutputs = eval::kOutputs;
 
 struct NetworkView {
     const float* params;  // per layer: W (out x in, row-major), b (out)
@@ -20,10 +22,10 @@ struct NetworkView {
     bool exponential;  // output transform: scale (exp(y) - 1) instead of scale y; clamped at 0 either way
 };
 
-// exp(x) for x in [-87, 88] by range reduction x = n ln2 + r and a degree-6 polynomial on |r| <= ln2/2
-// (relative error below 2e-7); the same coefficients in every kernel. Inputs are clamped to that range.
-constexpr float kExpHi = 88.0f, kExpLo = -87.0f, kLog2e = 1.44269504f, kLn2Hi = 0.693359375f, kLn2Lo = -2.12194440e-4f;
-constexpr float kExpP[7] = {1.0f, 1.0f, 0.5f, 0.166666672f, 0.0416666567f, 0.00833336264f, 0.00138889090f};
+// exp(x) - 1 as nrad/eval.h defines it (eval::expMinusOne): x clamped to [kExpLo, kExpHi], range reduction
+// and a degree-6 polynomial; the same constants in every kernel.
+constexpr float kExpHi = eval::kMaxLog, kExpLo = eval::kMinLog, kLog2e = eval::kLog2e, kLn2Hi = eval::kLn2Hi, kLn2Lo = eval::kLn2Lo;
+constexpr const float* kExpP = eval::kExpP;
 
 // x: kInputs rows of kChunk floats; y: kOutputs rows of kChunk floats: the radiance (scale and output
 // transform applied, never negative, NaN mapped to 0).

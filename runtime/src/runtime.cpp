@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 
@@ -25,7 +26,7 @@ struct NradAsset_ {
     size_t metadataLength = 0;
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
-    float gridFactor[3] = {1, 1, 1};  // dims / (upper - lower): exactly the factor format::gridCoordinate uses
+    float gridFactor[3] = {1, 1, 1};  // eval::gridFactor of each axis
     std::vector<float> scales;  // per network: the voxel's output scale
 };
 
@@ -125,8 +126,7 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
         std::string().swap(a->asset.metadata);
     }
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
-    for (int k = 0; k < 3; ++k)
-        a->gridFactor[k] = float(a->asset.grid.dims[k]) / (a->asset.grid.upper[k] - a->asset.grid.lower[k]);
+    for (int k = 0; k < 3; ++k) a->gridFactor[k] = eval::gridFactor(a->asset.grid, k);
     // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->asset.grid.voxelCount();
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
@@ -140,22 +140,15 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
 
 // ----- evaluation ------------------------------------------------------------------------------------------
 
-// Network of the voxel holding p (or -1 with a flag), and p's position inside that voxel.
+// Network of the voxel holding p (or -1 with a flag), and p's position inside that voxel (nrad/eval.h).
 int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& flag) {
-    const format::Grid& g = a.asset.grid;
-    int c[3];
-    for (int k = 0; k < 3; ++k) {
-        // The format's rule, with the continuous coordinate kept for the position input.
-        if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) {
-            flag = NRAD_POINT_OUTSIDE_GRID;
-            return -1;
-        }
-        float t = (p[k] - g.lower[k]) * a.gridFactor[k];  // == format::gridCoordinate, without its division
-        int i = int(t);
-        c[k] = i >= int(g.dims[k]) ? int(g.dims[k]) - 1 : (i < 0 ? 0 : i);
-        local[k] = 2.0f * (t - float(c[k])) - 1.0f;
+    const eval::Location where = eval::locate(a.asset.grid, a.gridFactor, p);
+    if (where.voxel < 0) {
+        flag = NRAD_POINT_OUTSIDE_GRID;
+        return -1;
     }
-    uint32_t voxel = uint32_t(c[0]) + g.dims[0] * (uint32_t(c[1]) + g.dims[1] * uint32_t(c[2]));
+    for (int k = 0; k < 3; ++k) local[k] = where.local[k];
+    const uint32_t voxel = uint32_t(where.voxel);
     int32_t net = -1;
     if (!a.denseLookup.empty()) {
         net = a.denseLookup[voxel];
@@ -168,7 +161,6 @@ int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& f
         flag = NRAD_POINT_EMPTY_VOXEL;
         return -1;
     }
-    for (int k = 0; k < 3; ++k) local[k] = std::min(1.0f, std::max(-1.0f, local[k]));
     flag = NRAD_POINT_OK;
     return net;
 }
@@ -398,6 +390,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.parametersPerNetwork = a->paramsPerNetwork;
         r.weightEncoding = uint32_t(t.weightEncoding);
         r.outputTransform = uint32_t(t.outputTransform);
+        r.contentFlags = (a->asset.header.flags & format::kFlagScatteredRadiance) ? NRAD_CONTENT_SCATTERED_RADIANCE : 0u;
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +

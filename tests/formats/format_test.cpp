@@ -1,5 +1,6 @@
 // The .nrad byte layout: golden bytes of a tiny asset, round trips, every truncated prefix, bad magic,
 // other versions, trailing bytes, flipped bytes caught by the CRCs, fp16 conversions, the voxel rule.
+#include <nrad/eval.h>
 #include <nrad/format.h>
 
 #include <cmath>
@@ -29,11 +30,12 @@ Asset tinyAsset(WeightEncoding encoding = WeightEncoding::Float16) {
     size_t n = a.topology.parameterCount();  // 9*2 + 2 + 3*2 + 3 = 29
     for (size_t i = 0; i < n; ++i) a.weights.push_back(float(int(i) - 14) * 0.25f);
     a.metadata = "{\"k\":1}";
+    a.header.flags = kFlagScatteredRadiance;
     return a;
 }
 
-std::vector<uint8_t> readGolden() {
-    std::ifstream f(test::sourcePath("tests/data/golden/tiny.nrad"), std::ios::binary);
+std::vector<uint8_t> readGolden(const char* name = "tiny.nrad") {
+    std::ifstream f(test::sourcePath(std::string("tests/data/golden/") + name), std::ios::binary);
     return std::vector<uint8_t>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
 }
 
@@ -47,12 +49,14 @@ TEST(Format, GoldenBytes) {
     std::vector<uint8_t> golden = readGolden();
     ASSERT_FALSE(golden.empty()) << "tests/data/golden/tiny.nrad missing";
     EXPECT_EQ(bytes, golden);
-    // Spot checks of the layout by hand: magic, version 1.0, header size, 5 sections, file size, table at 64.
+    // Spot checks of the layout by hand: magic, version 2.0, the scattered-radiance flag, header size, 5
+    // sections, file size, table at 64.
     const uint8_t magic[8] = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
     EXPECT_EQ(std::memcmp(bytes.data(), magic, 8), 0);
-    EXPECT_EQ(bytes[8], 1);
+    EXPECT_EQ(bytes[8], 2);
     EXPECT_EQ(bytes[9], 0);
     EXPECT_EQ(bytes[10], 0);
+    EXPECT_EQ(bytes[12], 1);
     EXPECT_EQ(bytes[16], 64);
     EXPECT_EQ(bytes[20], 5);
     EXPECT_EQ(uint64_t(bytes[24]) | (uint64_t(bytes[25]) << 8), bytes.size());
@@ -81,7 +85,27 @@ TEST(Format, RoundTripFp16AndFp32) {
         EXPECT_EQ(b.voxels[0].scale, 2.0f);
         EXPECT_EQ(b.weights, a.weights);  // multiples of 1/4 are exact in fp16
         EXPECT_EQ(b.metadata, "{\"k\":1}");
+        EXPECT_EQ(b.header.flags, kFlagScatteredRadiance);
     }
+}
+
+TEST(Format, VersionOneAssetsAreRefusedAndUnknownFlagsRejected) {
+    // Version 1 networks stored L with the surface's emission in it; version 2 readers refuse them rather
+    // than add the emission twice (docs/format.md, "Versions").
+    std::vector<uint8_t> v1 = readGolden("tiny-v1.nrad");
+    ASSERT_FALSE(v1.empty());
+    Asset out;
+    EXPECT_EQ(decode(v1.data(), v1.size(), out), DecodeStatus::UnsupportedVersion);
+    std::vector<uint8_t> b = encode(tinyAsset());
+    b[12] |= 0x80;  // a flag this reader does not know, with a valid header CRC
+    uint32_t crc = crc32(b.data(), 60);
+    for (int i = 0; i < 4; ++i) b[size_t(60 + i)] = uint8_t(crc >> (8 * i));
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadHeader);
+    Asset plain = tinyAsset();
+    plain.header.flags = 0;  // networks storing L: still a valid asset
+    b = encode(plain);
+    ASSERT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    EXPECT_EQ(out.header.flags, 0u);
 }
 
 TEST(Format, EveryTruncatedPrefixIsRejected) {
@@ -106,7 +130,7 @@ TEST(Format, BadMagicVersionAndTrailingBytes) {
     b[4] = 0x0A;  // CR LF turned into LF by a text-mode transfer
     EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadMagic);
     b = bytes;
-    b[8] = 2;  // a future major version
+    b[8] = 3;  // a future major version
     EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::UnsupportedVersion);
     b = bytes;
     b[10] = 7;  // a newer minor version is accepted when its CRC is right
@@ -150,19 +174,25 @@ TEST(Format, VoxelRuleOnBorders) {
     g.lower[0] = g.lower[1] = g.lower[2] = 0.0f;
     g.upper[0] = g.upper[1] = g.upper[2] = 3.0f;
     g.dims[0] = g.dims[1] = g.dims[2] = 3;
-    EXPECT_EQ(voxelCoordinate(0.0f, 0.0f, 3.0f, 3), 0);
-    EXPECT_EQ(voxelCoordinate(1.0f, 0.0f, 3.0f, 3), 1);  // an interior border belongs to the voxel above
-    EXPECT_EQ(voxelCoordinate(3.0f, 0.0f, 3.0f, 3), 2);  // the upper face belongs to the last voxel
-    EXPECT_EQ(voxelCoordinate(-1e-6f, 0.0f, 3.0f, 3), -1);
-    EXPECT_EQ(voxelCoordinate(std::numeric_limits<float>::quiet_NaN(), 0.0f, 3.0f, 3), -1);
+    auto voxelX = [&](float x) {
+        float p[3] = {x, 0.5f, 0.5f};
+        eval::Location at = eval::locate(g, p);
+        return at.voxel < 0 ? -1 : at.coord[0];
+    };
+    EXPECT_EQ(voxelX(0.0f), 0);
+    EXPECT_EQ(voxelX(1.0f), 1);  // an interior border belongs to the voxel above
+    EXPECT_EQ(voxelX(3.0f), 2);  // the upper face belongs to the last voxel
+    EXPECT_EQ(voxelX(-1e-6f), -1);
+    EXPECT_EQ(voxelX(std::numeric_limits<float>::quiet_NaN()), -1);
     float p[3] = {2.5f, 0.5f, 1.5f};
-    EXPECT_EQ(voxelIndex(g, p), 2 + 3 * (0 + 3 * 1));
-    int c[3] = {2, 0, 1};
-    float q[3];
-    positionInVoxel(g, p, c, q);
-    EXPECT_FLOAT_EQ(q[0], 0.0f);
-    EXPECT_FLOAT_EQ(q[1], 0.0f);
-    EXPECT_FLOAT_EQ(q[2], 0.0f);
+    eval::Location at = eval::locate(g, p);
+    EXPECT_EQ(at.voxel, 2 + 3 * (0 + 3 * 1));
+    EXPECT_FLOAT_EQ(at.local[0], 0.0f);
+    EXPECT_FLOAT_EQ(at.local[1], 0.0f);
+    EXPECT_FLOAT_EQ(at.local[2], 0.0f);
+    float upper[3] = {3.0f, 3.0f, 3.0f};
+    at = eval::locate(g, upper);  // the upper corner: the last voxel's +1 face
+    EXPECT_EQ(at.local[0], 1.0f);
 }
 
 TEST(Format, DecoderRejectsInvalidContent) {

@@ -1,11 +1,13 @@
 // libnrad: loading safety (every prefix, flipped bytes, bad magic, versions, trailing bytes, huge counts),
 // evaluation against an independent plain forward pass, every SIMD kernel against the scalar one, point
 // flags, both batch layouts, concurrent evaluation, and agreement with the baker's own forward pass.
+#include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 #include <nrad/nrad.hpp>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <random>
 #include <thread>
@@ -46,7 +48,8 @@ format::Asset randomAsset(std::vector<uint32_t> hidden, format::WeightEncoding e
 // Independent forward pass: straight from the format's definition, in double.
 glm::vec3 reference(const format::Asset& a, const glm::vec3& p, const glm::vec3& n, const glm::vec3& d, uint32_t& flag) {
     float q[3] = {p.x, p.y, p.z};
-    int64_t voxel = format::voxelIndex(a.grid, q);
+    const eval::Location where = eval::locate(a.grid, q);
+    int64_t voxel = where.voxel;
     if (voxel < 0) {
         flag = NRAD_POINT_OUTSIDE_GRID;
         return glm::vec3(0.0f);
@@ -59,10 +62,7 @@ glm::vec3 reference(const format::Asset& a, const glm::vec3& p, const glm::vec3&
         return glm::vec3(0.0f);
     }
     flag = NRAD_POINT_OK;
-    int c[3];
-    for (int k = 0; k < 3; ++k) c[k] = format::voxelCoordinate(q[k], a.grid.lower[k], a.grid.upper[k], a.grid.dims[k]);
-    float local[3];
-    format::positionInVoxel(a.grid, q, c, local);
+    const float* local = where.local;
     std::vector<double> x = {local[0], local[1], local[2], n.x, n.y, n.z, d.x, d.y, d.z};
     const float* w = a.weights.data() + net * a.topology.parameterCount();
     std::vector<uint32_t> widths = a.topology.hiddenWidths;
@@ -187,6 +187,70 @@ Points coherentPoints(const format::Asset& a, uint32_t seed) {
             }
         }
     return pts;
+}
+
+// The contract's own vectors (nrad/eval.h: locate -> network, encodeInputs, forward, decodeOutputs) against
+// every kernel, random and coherent batches: the scalar kernel is eval.h itself (bit for bit); the SIMD
+// kernels fuse multiply-adds and order their sums their own way (1e-5 of max(1, value)).
+TEST(Runtime, EveryKernelMatchesTheContractsVectors) {
+    for (auto transform : {format::OutputTransform::ClampedLinear, format::OutputTransform::Exponential}) {
+        format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, transform, 33, glm::uvec3(3, 3, 3));
+        std::vector<uint8_t> bytes = format::encode(a);
+        nrad::Asset asset;
+        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+        Points pts = coherentPoints(a, 8);
+        Points more = randomPoints(2000, 12);
+        pts.p.insert(pts.p.end(), more.p.begin(), more.p.end());
+        pts.n.insert(pts.n.end(), more.n.begin(), more.n.end());
+        pts.d.insert(pts.d.end(), more.d.begin(), more.d.end());
+        const size_t n = pts.p.size() / 3;
+        // The vectors.
+        std::vector<float> expected(3 * n, 0.0f);
+        std::vector<uint8_t> expectedFlag(n, NRAD_POINT_OK);
+        float scratch[eval::kForwardScratch];
+        for (size_t i = 0; i < n; ++i) {
+            const float *p = &pts.p[3 * i], *nn = &pts.n[3 * i], *d = &pts.d[3 * i];
+            bool finite = true;
+            for (int k = 0; k < 3; ++k) finite = finite && std::isfinite(p[k]) && std::isfinite(nn[k]) && std::isfinite(d[k]);
+            if (!finite) {
+                expectedFlag[i] = NRAD_POINT_INVALID_INPUT;
+                continue;
+            }
+            eval::Location at = eval::locate(a.grid, p);
+            if (at.voxel < 0) {
+                expectedFlag[i] = NRAD_POINT_OUTSIDE_GRID;
+                continue;
+            }
+            size_t net = a.voxels.size();
+            for (size_t v = 0; v < a.voxels.size(); ++v)
+                if (a.voxels[v].index == uint32_t(at.voxel)) net = v;
+            if (net == a.voxels.size()) {
+                expectedFlag[i] = NRAD_POINT_EMPTY_VOXEL;
+                continue;
+            }
+            float x[eval::kInputs], y[eval::kOutputs];
+            eval::encodeInputs(at.local, nn, d, x);
+            eval::forward(a.topology, a.weights.data() + net * a.topology.parameterCount(), x, y, scratch);
+            eval::decodeOutputs(transform, a.voxels[net].scale, y, &expected[3 * i]);
+        }
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> rgb(3 * n, -1.0f);
+            std::vector<uint8_t> flags(n, 255);
+            ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data(), flags.data()), NRAD_OK);
+            for (size_t i = 0; i < n; ++i) {
+                ASSERT_EQ(flags[i], expectedFlag[i]) << "kernel " << k << " point " << i;
+                for (int c = 0; c < 3; ++c) {
+                    float e = expected[3 * i + size_t(c)], r = rgb[3 * i + size_t(c)];
+                    if (k == NRAD_KERNEL_SCALAR)
+                        ASSERT_EQ(r, e) << "point " << i;
+                    else
+                        ASSERT_NEAR(r, e, 1e-5f * std::max(1.0f, e)) << "kernel " << k << " point " << i;
+                }
+            }
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
 }
 
 TEST(Runtime, CoherentRunsInBothLayoutsMatchAPlainForwardPass) {
@@ -369,8 +433,14 @@ TEST(RuntimeLoader, HostileAndDamagedBytes) {
     b[1] = 'X';
     EXPECT_EQ(loadStatus(b), NRAD_ERROR_NOT_AN_ASSET);
     b = good;
-    b[8] = 2;
+    b[8] = 3;
     EXPECT_EQ(loadStatus(b), NRAD_ERROR_UNSUPPORTED_VERSION);
+    {  // a version 1 asset (networks storing L with emission), as docs/format.md promises
+        std::ifstream f(test::sourcePath("tests/data/golden/tiny-v1.nrad"), std::ios::binary);
+        std::vector<uint8_t> v1((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+        ASSERT_FALSE(v1.empty());
+        EXPECT_EQ(loadStatus(v1), NRAD_ERROR_UNSUPPORTED_VERSION);
+    }
     b = good;
     b.push_back(0);
     EXPECT_EQ(loadStatus(b), NRAD_ERROR_CORRUPT);

@@ -1,7 +1,7 @@
-// The .nrad asset byte layout: constants, the header and section records, the CRC, the voxel lookup and
-// a decoder that checks every offset, size and CRC against the buffer it is given. This file is the
-// single definition shared by the baker's writer and the runtime's reader; docs/format.md specifies it.
-// Only the C++17 standard library.
+// The .nrad asset byte layout: constants, the header and section records, the CRC, and a decoder that
+// checks every offset, size and CRC against the buffer it is given. This file is the single definition of
+// the bytes shared by the baker's writer and the runtime's reader; nrad/eval.h defines what the networks in
+// them compute. docs/format.md specifies both. Only the C++17 standard library.
 #pragma once
 
 #include <array>
@@ -18,8 +18,12 @@ namespace nrad::format {
 
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
-constexpr uint16_t kVersionMajor = 1;  // a reader rejects any other major version
+constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
 constexpr uint16_t kVersionMinor = 0;  // a reader accepts newer minors (new optional sections only)
+
+// Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
+constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
+constexpr uint32_t kKnownFlags = kFlagScatteredRadiance;
 
 constexpr uint32_t kHeaderSize = 64;
 constexpr uint32_t kSectionRecordSize = 32;
@@ -50,7 +54,7 @@ enum class WeightEncoding : uint32_t { Float32 = 0, Float16 = 1 };
 // writes field by field so host padding and endianness never matter) --------------------------------------
 
 struct Header {  // 64 bytes at offset 0
-    // 0: magic[8]; 8: u16 versionMajor; 10: u16 versionMinor; 12: u32 flags (0); 16: u32 headerSize (64);
+    // 0: magic[8]; 8: u16 versionMajor; 10: u16 versionMinor; 12: u32 flags (kFlag*); 16: u32 headerSize (64);
     // 20: u32 sectionCount; 24: u64 fileSize; 32: u64 sectionTableOffset; 40: u32 CRC-32 of the section
     // table; 44..59: reserved (0); 60: u32 CRC-32 of bytes 0..59.
     uint16_t versionMajor = kVersionMajor;
@@ -173,38 +177,6 @@ inline float halfToFloat(uint16_t h) {
     return f;
 }
 
-// ----- voxel lookup: the rule both the baker and the runtime use ------------------------------------------
-
-// Continuous voxel coordinate of p along one axis, (p - lower) x dim / (upper - lower): the quantity both
-// the voxel rule and the position input are computed from (so they always agree).
-inline float gridCoordinate(float p, float lower, float upper, uint32_t dim) {
-    return (p - lower) * (float(dim) / (upper - lower));  // the division depends on the grid only: hoistable
-}
-
-// Voxel coordinate of p along one axis: floor((p - lower) / (upper - lower) * dim), with the upper face
-// belonging to the last voxel. A point on an interior border belongs to the voxel above it. Returns -1
-// outside [lower, upper] (or for NaN).
-inline int voxelCoordinate(float p, float lower, float upper, uint32_t dim) {
-    if (!(p >= lower && p <= upper)) return -1;
-    float t = gridCoordinate(p, lower, upper, dim);
-    int i = int(t);
-    return i >= int(dim) ? int(dim) - 1 : (i < 0 ? 0 : i);
-}
-
-// Linear index of the voxel holding p, or -1 if p is outside the grid.
-inline int64_t voxelIndex(const Grid& g, const float p[3]) {
-    int c[3];
-    for (int k = 0; k < 3; ++k)
-        if ((c[k] = voxelCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k])) < 0) return -1;
-    return int64_t(c[0]) + int64_t(g.dims[0]) * (int64_t(c[1]) + int64_t(g.dims[1]) * int64_t(c[2]));
-}
-
-// Position of p inside voxel (x, y, z), mapped to [-1, 1]^3 (the network's first three inputs):
-// 2 (t - coord) - 1 with t the continuous grid coordinate.
-inline void positionInVoxel(const Grid& g, const float p[3], const int coord[3], float out[3]) {
-    for (int k = 0; k < 3; ++k) out[k] = 2.0f * (gridCoordinate(p[k], g.lower[k], g.upper[k], g.dims[k]) - float(coord[k])) - 1.0f;
-}
-
 // ----- decoding -------------------------------------------------------------------------------------------
 
 enum class DecodeStatus {
@@ -284,7 +256,7 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     h.sectionTableOffset = rd64(data + 32);
     for (int i = 44; i < 60; ++i)
         if (data[i] != 0) return DecodeStatus::BadHeader;
-    if (headerSize != kHeaderSize || h.flags != 0) return DecodeStatus::BadHeader;
+    if (headerSize != kHeaderSize || (h.flags & ~kKnownFlags) != 0) return DecodeStatus::BadHeader;
     if (h.fileSize > size) return DecodeStatus::Truncated;
     if (h.fileSize < size) return DecodeStatus::TrailingBytes;
     if (h.sectionCount == 0 || h.sectionCount > kMaxSections || h.sectionTableOffset != kHeaderSize)
@@ -416,7 +388,8 @@ inline void put32(std::vector<uint8_t>& b, size_t at, uint32_t v) { for (int i =
 inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i)); }
 }  // namespace detail
 
-// Encodes an asset. Preconditions (the caller's job; encode() does not validate): weights.size() ==
+// Encodes an asset (header.flags as given, version and sizes from this file). Preconditions (the caller's
+// job; encode() does not validate): weights.size() ==
 // voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid, all values
 // finite, scales > 0. The output decodes to the same asset (weights rounded to the encoding).
 inline std::vector<uint8_t> encode(const Asset& a) {
@@ -477,6 +450,7 @@ inline std::vector<uint8_t> encode(const Asset& a) {
     out[9] = uint8_t(kVersionMajor >> 8);
     out[10] = uint8_t(kVersionMinor);
     out[11] = uint8_t(kVersionMinor >> 8);
+    put32(out, 12, a.header.flags & kKnownFlags);
     put32(out, 16, kHeaderSize);
     put32(out, 20, uint32_t(sections.size()));
     put64(out, 32, kHeaderSize);

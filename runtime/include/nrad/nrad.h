@@ -11,6 +11,10 @@
  *   releasing are not concurrent with evaluation of the same handle.
  * - Radiance is in the scene's units (see the baker's docs/lights.md); directions point away from the
  *   surface, towards the viewer.
+ * - What the networks store is in NradAssetInfo.contentFlags. With NRAD_CONTENT_SCATTERED_RADIANCE (every
+ *   asset of format 2) the evaluation returns the radiance the surface *scatters*, without its own
+ *   emission: the shader adds the surface's emissive term (material emission towards the viewer, textures
+ *   included), as for any other surface (docs/runtime.md, "Shading contract").
  */
 #ifndef NRAD_NRAD_H
 #define NRAD_NRAD_H
@@ -23,7 +27,7 @@ extern "C" {
 #endif
 
 #define NRAD_VERSION_MAJOR 0
-#define NRAD_VERSION_MINOR 1
+#define NRAD_VERSION_MINOR 2
 #define NRAD_VERSION_PATCH 0
 
 typedef struct NradAsset_* NradAsset;
@@ -77,9 +81,13 @@ typedef struct NradAssetInfo {
     uint32_t parametersPerNetwork;
     uint32_t weightEncoding;   /* 0 = fp32, 1 = fp16 (as stored in the file) */
     uint32_t outputTransform;  /* 0 = scale max(0, y), 1 = scale (exp(y) - 1) */
+    uint32_t contentFlags;     /* NRAD_CONTENT_*: what the networks store */
     uint64_t fileBytes;        /* size of the asset data */
     uint64_t memoryBytes;      /* memory held by the handle */
 } NradAssetInfo;
+
+/* contentFlags: the radiance returned excludes the surface's own emission (add it when shading). */
+#define NRAD_CONTENT_SCATTERED_RADIANCE 1u
 
 NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
 /* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels. */

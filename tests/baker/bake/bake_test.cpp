@@ -5,10 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
+#include <nrad/nrad.hpp>
 
 #include "baker/bake/voxel_grid.h"
+#include "baker/render/neural_render.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/util/threads.h"
 #include "support/test_paths.h"
@@ -98,6 +101,102 @@ TEST(Bake, PaperConfigurationFitsIn8KB) {
     EXPECT_GE(r.asset.voxels.size(), 20u);
     EXPECT_LT(bytes.size(), 8192u);
     EXPECT_FALSE(r.asset.metadata.empty());
+}
+
+
+// A lamp alone in an empty room (issue 13): a 0.6 m square emitter of radiance (5, 3, 1), black itself (it
+// scatters nothing), on the floor of a grey 2 m room. The networks store scattered radiance, so the asset
+// on the lamp is ~0 although the lit floor beside it shares its voxel, and shading adds the lamp's emission
+// back: the rendered lamp is its emission.
+Scene lampInAnEmptyRoom() {
+    Scene scene;
+    scene.sourcePath = "<lamp in an empty room>";
+    Material wall;
+    wall.baseColor = glm::vec3(0.5f);
+    wall.metallic = 0.0f;
+    wall.specular = 0.0f;
+    Material lamp = wall;
+    lamp.baseColor = glm::vec3(0.0f);
+    lamp.emission = glm::vec3(5.0f, 3.0f, 1.0f);
+    scene.materials = {wall, lamp};
+    TriangleMesh& mesh = scene.mesh;
+    auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d, uint32_t material) {
+        glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
+        uint32_t first = uint32_t(mesh.positions.size());
+        for (const glm::vec3& v : {a, b, c, d}) {
+            mesh.positions.push_back(v);
+            mesh.normals.push_back(n);
+            mesh.uv0.emplace_back(0.0f);
+            mesh.uv1.emplace_back(0.0f);
+        }
+        mesh.triangles.push_back({first, first + 1, first + 2});
+        mesh.triangles.push_back({first, first + 2, first + 3});
+        mesh.materialIds.push_back(material);
+        mesh.materialIds.push_back(material);
+    };
+    const float S = 2.0f;  // the room [0, S]^3, every wall facing inwards
+    quad({0, 0, 0}, {0, 0, S}, {S, 0, S}, {S, 0, 0}, 0);  // floor (+y)
+    quad({0, S, 0}, {S, S, 0}, {S, S, S}, {0, S, S}, 0);  // ceiling (-y)
+    quad({0, 0, 0}, {S, 0, 0}, {S, S, 0}, {0, S, 0}, 0);  // z = 0 (+z)
+    quad({0, 0, S}, {0, S, S}, {S, S, S}, {S, 0, S}, 0);  // z = S (-z)
+    quad({0, 0, 0}, {0, S, 0}, {0, S, S}, {0, 0, S}, 0);  // x = 0 (+x)
+    quad({S, 0, 0}, {S, 0, S}, {S, S, S}, {S, S, 0}, 0);  // x = S (-x)
+    const float y = 0.01f, lo = 0.7f, hi = 1.3f;
+    quad({lo, y, lo}, {lo, y, hi}, {hi, y, hi}, {hi, y, lo}, 1);  // the lamp (+y)
+    Camera top;  // orthographic, straight down at the lamp's middle
+    top.type = Camera::Type::Orthographic;
+    top.position = glm::vec3(1.0f, 1.9f, 1.0f);
+    top.worldFromCamera = glm::mat3(glm::vec3(1, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+    top.xmag = top.ymag = 0.2f;
+    scene.cameras.push_back(top);
+    scene.updateBounds();
+    return scene;
+}
+
+TEST(Bake, EmissionStaysOutOfTheNetworks) {
+    Scene scene = lampInAnEmptyRoom();
+    BakeSettings s = smallSettings();
+    s.grid = glm::uvec3(2);
+    BakeResult r = bakeScene(scene, s);
+    EXPECT_EQ(r.asset.header.flags, format::kFlagScatteredRadiance);
+    std::vector<uint8_t> bytes = format::encode(r.asset);
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    NradAssetInfo info;
+    ASSERT_EQ(nradGetAssetInfo(asset.get(), &info), NRAD_OK);
+    EXPECT_EQ(info.contentFlags, NRAD_CONTENT_SCATTERED_RADIANCE);
+    // On the lamp, towards many directions: the asset's scattered radiance is ~0 (the floor around it,
+    // in the same voxels, is lit to about 0.02).
+    double onLamp = 0.0, onFloor = 0.0;
+    int n = 0;
+    for (int i = 0; i < 16; ++i)
+        for (int j = 0; j < 16; ++j) {
+            float p[3] = {0.72f + 0.56f * float(i) / 15.0f, 0.01f, 0.72f + 0.56f * float(j) / 15.0f};
+            float q[3] = {0.2f + 0.1f * float(i) / 15.0f, 0.0f, 0.2f + 0.1f * float(j) / 15.0f};
+            glm::vec3 d = glm::normalize(glm::vec3(std::sin(float(i + 16 * j)), 1.5f, std::cos(float(3 * i + j))));
+            float nrm[3] = {0, 1, 0}, dir[3] = {d.x, d.y, d.z}, rgb[3];
+            ASSERT_EQ(asset.evaluate(p, nrm, dir, rgb), NRAD_OK);
+            onLamp += (rgb[0] + rgb[1] + rgb[2]) / 3.0;
+            ASSERT_EQ(asset.evaluate(q, nrm, dir, rgb), NRAD_OK);
+            onFloor += (rgb[0] + rgb[1] + rgb[2]) / 3.0;
+            ++n;
+        }
+    onLamp /= n;
+    onFloor /= n;
+    EXPECT_GT(onFloor, 0.01);
+    EXPECT_LT(onLamp, 0.01 * 3.0) << "floor " << onFloor;  // 1% of the lamp's mean emission
+    std::printf("asset on the lamp %.5f, on the floor beside it %.5f\n", onLamp, onFloor);
+    // Rendered through the asset, the lamp is its emission (scattered ~0 plus Le from the material).
+    Accel accel(scene.mesh);
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.spp = 1;
+    Image image;
+    ASSERT_EQ(renderThroughAsset(scene, accel, asset.get(), scene.cameras[0], rs, image), NRAD_OK);
+    glm::vec3 mean = image.mean();
+    EXPECT_NEAR(mean.x, 5.0f, 0.1f);
+    EXPECT_NEAR(mean.y, 3.0f, 0.1f);
+    EXPECT_NEAR(mean.z, 1.0f, 0.1f);
 }
 
 }  // namespace
