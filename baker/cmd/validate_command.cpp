@@ -93,6 +93,15 @@ int runValidate(const ValidateOptions& o) {
         std::printf("  SH probe baseline (%zu bytes, neural %zu bytes): relMSE %.4g -> %s is better overall\n", r.baseline->bytes,
                     r.neural.bytes, r.baseline->metrics.relMse,
                     r.neural.metrics.relMse <= r.baseline->metrics.relMse ? "neural" : "the SH baseline");
+    {
+        const MethodResult& n = r.neural;
+        std::printf("  where: worst 1%% of pixels hold %.1f%% of the relMSE; relative error median %.3g, 99th percentile %.3g;"
+                    " relMSE", 100.0 * n.distribution.worst1PercentShare, n.distribution.medianRelativeError,
+                    n.distribution.p99RelativeError);
+        for (size_t k = 0; k < n.byRegion.size(); ++k)
+            std::printf("%s %s %.3g (%.1f%%)", k ? "," : "", kRegionNames[k], n.byRegion[k].relMse, 100.0 * n.byRegion[k].shareOfImage);
+        std::printf("; seams: relMSE across shared faces %.3g at %zu points\n", r.seams.relMse, r.seams.points);
+    }
     std::printf("  path tracer at equal error: %.3g s%s = %.3gx the network evaluation, %.3gx the whole neural render\n",
                 r.neural.equalErrorSeconds, r.neural.equalErrorExtrapolated ? " (extrapolated)" : "", r.neural.speedupOverEvaluation,
                 r.neural.speedupOverRender);

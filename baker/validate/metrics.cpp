@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 namespace nrad {
@@ -88,6 +89,75 @@ Image relativeErrorMap(const Image& image, const Image& reference) {
         float srgb[3];
         errorRamp(t, srgb);
         for (int c = 0; c < 3; ++c) out.pixels[i][c] = float(srgbToLinear(srgb[c]));
+    }
+    return out;
+}
+
+namespace {
+double pixelRelMse(const glm::vec3& x, const glm::vec3& ref) {
+    double e = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        double v = std::isfinite(x[c]) ? double(x[c]) : 0.0, d = v - double(ref[c]);
+        e += d * d / (double(ref[c]) * double(ref[c]) + 0.01);
+    }
+    return e / 3.0;
+}
+double pixelRelativeError(const glm::vec3& x, const glm::vec3& ref) {
+    double e = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        double v = std::isfinite(x[c]) ? double(x[c]) : 0.0;
+        e += std::abs(v - double(ref[c])) / (std::abs(double(ref[c])) + 0.01);
+    }
+    return e / 3.0;
+}
+// The q-quantile (0..1) of v by the nearest-rank rule; v is reordered.
+double quantile(std::vector<double>& v, double q) {
+    if (v.empty()) return 0.0;
+    size_t k = std::min(v.size() - 1, size_t(std::ceil(q * double(v.size()))) - (q > 0.0 ? 1 : 0));
+    std::nth_element(v.begin(), v.begin() + long(k), v.end());
+    return v[k];
+}
+}  // namespace
+
+ErrorDistribution errorDistribution(const Image& image, const Image& reference) {
+    requireSameSize(image, reference);
+    const size_t n = image.pixels.size();
+    ErrorDistribution d;
+    if (n == 0) return d;
+    std::vector<double> rel(n), err(n);
+    double total = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        rel[i] = pixelRelMse(image.pixels[i], reference.pixels[i]);
+        err[i] = pixelRelativeError(image.pixels[i], reference.pixels[i]);
+        total += rel[i];
+    }
+    const size_t worst = (n + 99) / 100;  // ceil(1%)
+    std::partial_sort(rel.begin(), rel.begin() + long(worst), rel.end(), std::greater<double>());
+    double top = 0.0;
+    for (size_t i = 0; i < worst; ++i) top += rel[i];
+    d.worst1PercentShare = total > 0.0 ? top / total : 0.0;
+    d.medianRelativeError = quantile(err, 0.5);
+    d.p99RelativeError = quantile(err, 0.99);
+    return d;
+}
+
+std::vector<RegionError> relMseByRegion(const Image& image, const Image& reference, const std::vector<int>& region,
+                                        int regionCount) {
+    requireSameSize(image, reference);
+    if (region.size() != image.pixels.size()) throw std::invalid_argument("region map and image differ in size");
+    std::vector<RegionError> out(size_t(std::max(0, regionCount)));
+    double total = 0.0;
+    for (size_t i = 0; i < image.pixels.size(); ++i) {
+        double e = pixelRelMse(image.pixels[i], reference.pixels[i]);
+        total += e;
+        if (region[i] < 0 || region[i] >= regionCount) continue;
+        RegionError& r = out[size_t(region[i])];
+        ++r.pixels;
+        r.relMse += e;
+    }
+    for (RegionError& r : out) {
+        r.shareOfImage = total > 0.0 ? r.relMse / total : 0.0;
+        r.relMse = r.pixels > 0 ? r.relMse / double(r.pixels) : 0.0;
     }
     return out;
 }

@@ -40,4 +40,22 @@ struct DecadeError {
 };
 std::vector<DecadeError> relMseByDecade(const Image& image, const Image& reference);
 
+// Where the error lives. Per pixel: relMSE_i = mean over channels of (x - ref)^2 / (ref^2 + 0.01) (the
+// image's relMSE is their mean) and the relative error e_i = mean over channels of |x - ref| / (|ref| + 0.01).
+struct ErrorDistribution {
+    double worst1PercentShare = 0.0;  // share of the summed relMSE_i held by the worst 1% of pixels (ceil)
+    double medianRelativeError = 0.0;  // of e_i
+    double p99RelativeError = 0.0;  // 99th percentile of e_i
+};
+ErrorDistribution errorDistribution(const Image& image, const Image& reference);
+
+// relMSE over the pixels of each region: region[i] in [0, regionCount) names pixel i's region (or -1: none).
+struct RegionError {
+    size_t pixels = 0;
+    double relMse = 0.0;  // mean relMSE_i over the region's pixels (0 if it has none)
+    double shareOfImage = 0.0;  // the region's summed relMSE_i over the whole image's
+};
+std::vector<RegionError> relMseByRegion(const Image& image, const Image& reference, const std::vector<int>& region,
+                                        int regionCount);
+
 }  // namespace nrad

@@ -46,8 +46,16 @@ nlohmann::json methodJson(const MethodResult& m) {
     for (const DecadeError& d : m.byDecade)
         decades.push_back({{"luminance_from", d.lo}, {"luminance_to", d.hi}, {"pixels", d.pixels}, {"relmse", num(d.relMse)},
                            {"relative_rms", num(d.relativeRms)}});
+    nlohmann::json regions = nlohmann::json::array();
+    for (size_t k = 0; k < m.byRegion.size() && k < size_t(kRegionCount); ++k)
+        regions.push_back({{"region", kRegionNames[k]}, {"pixels", m.byRegion[k].pixels}, {"relmse", num(m.byRegion[k].relMse)},
+                           {"share_of_image_relmse", num(m.byRegion[k].shareOfImage)}});
     return {{"name", m.name},
             {"metrics", metricsJson(m.metrics)},
+            {"error_distribution", {{"worst_1_percent_share_of_relmse", num(m.distribution.worst1PercentShare)},
+                                    {"median_relative_error", num(m.distribution.medianRelativeError)},
+                                    {"p99_relative_error", num(m.distribution.p99RelativeError)}}},
+            {"by_region", regions},
             {"seconds", m.seconds},
             {"visibility_seconds", m.visibilitySeconds},
             {"evaluation_seconds", m.evaluationSeconds},
@@ -227,6 +235,8 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
     j["path_tracer_convergence"] = curve;
     j["neural"] = methodJson(r.neural);
+    j["seams"] = {{"points", r.seams.points}, {"relmse_across_faces", num(r.seams.relMse)},
+                  {"mean_relative_jump", num(r.seams.meanRelativeJump)}};
     if (r.baseline) {
         j["baseline"] = methodJson(*r.baseline);
         j["baseline"]["probes"] = {r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z};
@@ -360,7 +370,25 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     };
     metricRow("neural", r.neural.metrics, r.neural.seconds, methodNote(r.neural));
     if (r.baseline) metricRow("SH probes", r.baseline->metrics, r.baseline->seconds, methodNote(*r.baseline));
-    h << "</table>\n<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">";
+    h << "</table>\n";
+    // Where the error lives.
+    h << "<h2>Where the error is</h2>\n<table><tr><th>method</th><th>worst 1% of pixels: share of relMSE</th>"
+         "<th>median relative error</th><th>99th percentile</th>";
+    for (int k = 0; k < kRegionCount; ++k) h << "<th>relMSE: " << kRegionNames[k] << " (pixels; share)</th>";
+    h << "</tr>\n";
+    auto whereRow = [&](const std::string& name, const MethodResult& m) {
+        h << "<tr><td>" << escape(name) << "</td><td>" << fmt("%.1f%%", 100.0 * m.distribution.worst1PercentShare) << "</td><td>"
+          << fmt("%.3g", m.distribution.medianRelativeError) << "</td><td>" << fmt("%.3g", m.distribution.p99RelativeError) << "</td>";
+        for (const RegionError& e : m.byRegion)
+            h << "<td>" << fmt("%.3g", e.relMse) << " (" << e.pixels << "; " << fmt("%.1f%%", 100.0 * e.shareOfImage) << ")</td>";
+        h << "</tr>\n";
+    };
+    whereRow("neural", r.neural);
+    if (r.baseline) whereRow("SH probes", *r.baseline);
+    h << "</table>\n<p>Seams: at " << r.seams.points << " surface points on faces shared by two occupied voxels, the asset's "
+      << "radiance on either side differs by a relMSE of " << fmt("%.3g", r.seams.relMse) << " (mean relative jump "
+      << fmt("%.3g", r.seams.meanRelativeJump) << ").</p>\n";
+    h << "<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">";
     if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
     h << "</div>\n";
     if (r.baseline) {

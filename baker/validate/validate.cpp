@@ -2,6 +2,9 @@
 #include "baker/validate/validate.h"
 
 #include <chrono>
+#include <limits>
+#include <tbb/parallel_for.h>
+#include <nrad/eval.h>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -11,6 +14,8 @@
 #include "baker/bake/training_samples.h"
 #include "baker/bake/voxel_grid.h"
 #include "baker/render/accel.h"
+#include "baker/render/surface.h"
+#include "baker/render/camera.h"
 #include "baker/render/light_sampler.h"
 #include "baker/render/neural_render.h"
 
@@ -32,9 +37,12 @@ void fnv(uint64_t& h, const void* data, size_t bytes) {
 }
 
 // Scores a first-hit render and splits its wall time by the thread-time shares.
-void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference, float exposure) {
+void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference, float exposure,
+           const std::vector<int>& regionOfPixel) {
     m.metrics = compareImages(m.image, reference, exposure);
     m.byDecade = relMseByDecade(m.image, reference);
+    m.distribution = errorDistribution(m.image, reference);
+    m.byRegion = relMseByRegion(m.image, reference, regionOfPixel, kRegionCount);
     m.seconds = st.seconds;
     double threadTime = st.visibilitySeconds + st.evaluationSeconds;
     double share = threadTime > 0.0 ? st.evaluationSeconds / threadTime : 0.0;
@@ -44,6 +52,115 @@ void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference,
     m.outsideGrid = st.outsideGrid;
     m.emptyVoxel = st.emptyVoxel;
 }
+
+// The first hit through each pixel's centre: the voxel it lies in (-1: none) and whether it emits.
+void firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid,
+               std::vector<int64_t>& voxel, std::vector<uint8_t>& emitter, std::vector<glm::vec3>* points = nullptr,
+               std::vector<glm::vec3>* normals = nullptr, std::vector<glm::vec3>* directions = nullptr) {
+    CameraRays rays(camera, width, height);
+    const size_t n = size_t(width) * size_t(height);
+    voxel.assign(n, -1);
+    emitter.assign(n, 0);
+    if (points) points->assign(n, glm::vec3(std::numeric_limits<float>::quiet_NaN()));
+    if (normals) normals->assign(n, glm::vec3(0.0f));
+    if (directions) directions->assign(n, glm::vec3(0.0f));
+    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+        for (int y = rows.begin(); y != rows.end(); ++y)
+            for (int x = 0; x < width; ++x) {
+                glm::vec3 o, d;
+                rays.generate(float(x) + 0.5f, float(y) + 0.5f, o, d);
+                Hit hit = accel.intersect(o, d);
+                if (!hit.valid()) continue;
+                SurfaceInteraction si = makeInteraction(scene, hit, d);
+                const size_t i = size_t(y) * size_t(width) + size_t(x);
+                const float p[3] = {si.p.x, si.p.y, si.p.z};
+                voxel[i] = eval::locate(grid, p).voxel;
+                emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
+                if (points) (*points)[i] = si.p;
+                if (normals) (*normals)[i] = si.ns;
+                if (directions) (*directions)[i] = si.wo;
+            }
+    });
+}
+
+}  // namespace
+
+std::vector<int> pixelRegions(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
+                              const format::Grid& grid) {
+    std::vector<int64_t> voxel;
+    std::vector<uint8_t> emitter;
+    firstHits(scene, accel, camera, width, height, grid, voxel, emitter);
+    std::vector<int> region(voxel.size(), 2);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const size_t i = size_t(y) * size_t(width) + size_t(x);
+            if (emitter[i]) {
+                region[i] = 0;
+                continue;
+            }
+            if (voxel[i] < 0) continue;
+            bool border = false;
+            for (int dy = -1; dy <= 1 && !border; ++dy)
+                for (int dx = -1; dx <= 1 && !border; ++dx) {
+                    int u = x + dx, v = y + dy;
+                    if (u < 0 || v < 0 || u >= width || v >= height) continue;
+                    int64_t other = voxel[size_t(v) * size_t(width) + size_t(u)];
+                    border = other >= 0 && other != voxel[i];
+                }
+            if (border) region[i] = 1;
+        }
+    return region;
+}
+
+SeamFigure seamFigure(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
+                      const format::Grid& grid, NradAsset asset) {
+    std::vector<int64_t> voxel;
+    std::vector<uint8_t> emitter;
+    std::vector<glm::vec3> points, normals, directions;
+    firstHits(scene, accel, camera, width, height, grid, voxel, emitter, &points, &normals, &directions);
+    // For each hit near an interior face: the point on the face, nudged to either side.
+    std::vector<float> p, n, d;
+    for (size_t i = 0; i < voxel.size(); ++i) {
+        if (voxel[i] < 0 || emitter[i]) continue;
+        for (int k = 0; k < 3; ++k) {
+            const float factor = eval::gridFactor(grid, k);
+            const float t = eval::gridCoordinate(points[i][k], grid.lower[k], factor);
+            const float face = std::round(t);
+            if (face < 1.0f || face > float(grid.dims[k]) - 1.0f || std::abs(t - face) > 0.02f) continue;
+            for (float side : {-1e-4f, 1e-4f}) {
+                glm::vec3 q = points[i];
+                q[k] = grid.lower[k] + (face + side) / factor;
+                for (int c = 0; c < 3; ++c) {
+                    p.push_back(q[c]);
+                    n.push_back(normals[i][c]);
+                    d.push_back(directions[i][c]);
+                }
+            }
+        }
+    }
+    SeamFigure f;
+    const size_t count = p.size() / 3;
+    if (count == 0) return f;
+    std::vector<float> rgb(3 * count);
+    std::vector<uint8_t> flags(count);
+    if (nradEvaluateBatch(asset, count, p.data(), n.data(), d.data(), rgb.data(), flags.data()) != NRAD_OK) return f;
+    for (size_t j = 0; j + 1 < count; j += 2) {
+        if (flags[j] != NRAD_POINT_OK || flags[j + 1] != NRAD_POINT_OK) continue;  // a face with an empty voxel
+        ++f.points;
+        for (int c = 0; c < 3; ++c) {
+            double a = rgb[3 * j + size_t(c)], b = rgb[3 * (j + 1) + size_t(c)], m = 0.5 * (a + b);
+            f.relMse += (a - b) * (a - b) / (m * m + 0.01);
+            f.meanRelativeJump += std::abs(a - b) / (m + 0.01);
+        }
+    }
+    if (f.points > 0) {
+        f.relMse /= 3.0 * double(f.points);
+        f.meanRelativeJump /= 3.0 * double(f.points);
+    }
+    return f;
+}
+
+namespace {
 
 void equalError(MethodResult& m, const std::vector<CurvePoint>& curve) {
     m.equalErrorSeconds = equalErrorTime(curve, m.metrics.relMse, m.equalErrorExtrapolated);
@@ -168,6 +285,20 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     // 3. Through the asset, as an engine would (the public runtime API).
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
+    format::Grid assetGrid;
+    for (int k = 0; k < 3; ++k) {
+        assetGrid.lower[k] = info.gridLower[k];
+        assetGrid.upper[k] = info.gridUpper[k];
+        assetGrid.dims[k] = info.gridDims[k];
+    }
+    r.regionOfPixel = pixelRegions(scene, accel, camera, r.width, r.height, assetGrid);
+    r.seams = seamFigure(scene, accel, camera, r.width, r.height, assetGrid, asset);
+    {
+        char line[200];
+        std::snprintf(line, sizeof line, "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g",
+                      r.seams.points, r.seams.relMse, r.seams.meanRelativeJump);
+        say(line);
+    }
     RenderSettings fh = rs;
     fh.spp = settings.neuralSpp;
     fh.seed = settings.seed;
@@ -177,7 +308,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         NeuralRenderStats st;
         if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
             throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
-        score(m, st, r.reference, settings.exposure);
+        score(m, st, r.reference, settings.exposure, r.regionOfPixel);
         m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
         equalError(m, r.curve);
         r.neural = std::move(m);
@@ -233,7 +364,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         NeuralRenderStats st;
         // The probes are fitted to the same scattered-radiance samples as the networks: shaded alike.
         renderFirstHit(scene, accel, evaluate, format::kFlagScatteredRadiance, camera, fh, m.image, &st);
-        score(m, st, r.reference, settings.exposure);
+        score(m, st, r.reference, settings.exposure, r.regionOfPixel);
         m.bytes = probes.bytes();
         equalError(m, r.curve);
         r.baseline = std::move(m);

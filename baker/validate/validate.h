@@ -8,8 +8,10 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <nrad/format.h>
 #include <nrad/nrad.h>
 
+#include "baker/render/accel.h"
 #include "baker/render/image_io.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/scene.h"
@@ -49,6 +51,8 @@ struct MethodResult {
     uint64_t evaluations = 0, outsideGrid = 0, emptyVoxel = 0;
     size_t bytes = 0;  // the representation's size: network weights, or probe coefficients as fp16
     std::vector<DecadeError> byDecade;
+    ErrorDistribution distribution;
+    std::vector<RegionError> byRegion;  // kRegionNames order
     // The path tracer's time to reach this image's relMSE on the convergence curve (log-log interpolation;
     // extrapolated with relMSE ~ 1/time outside it) and that time over this render's times.
     double equalErrorSeconds = 0.0;
@@ -56,6 +60,29 @@ struct MethodResult {
     double speedupOverEvaluation = 0.0;  // equalErrorSeconds / evaluationSeconds
     double speedupOverRender = 0.0;  // equalErrorSeconds / seconds
 };
+
+// Pixel regions of the validation image, by the surface each pixel's centre sees: an emitter, a voxel border
+// (a pixel whose 3 x 3 neighbourhood sees points of more than one voxel), or the rest (background included).
+constexpr int kRegionCount = 3;
+constexpr const char* kRegionNames[kRegionCount] = {"emitters", "voxel borders", "rest"};
+
+// Seams: on surface points within 2% of a voxel size of a face shared by two occupied voxels, the asset's
+// radiance just on either side of the face (the point projected onto it, moved 1e-4 of a voxel each way).
+struct SeamFigure {
+    size_t points = 0;
+    // mean over points and channels of (La - Lb)^2 / (((La + Lb) / 2)^2 + 0.01): the relMSE of one side
+    // against the other, comparable to the networks' held-out relMSE.
+    double relMse = 0.0;
+    double meanRelativeJump = 0.0;  // mean of |La - Lb| / ((La + Lb) / 2 + 0.01)
+};
+
+// The kRegionNames region of every pixel of a width x height view (row-major), from the first hit through
+// each pixel's centre and the asset's grid.
+std::vector<int> pixelRegions(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
+                              const format::Grid& grid);
+// The seam figure of `asset` on the surface points a width x height view sees.
+SeamFigure seamFigure(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
+                      const format::Grid& grid, NradAsset asset);
 
 struct ValidationResult {
     std::string scenePath, assetPath;
@@ -74,6 +101,8 @@ struct ValidationResult {
     std::string baselineSamplesNote;  // where the baseline's training settings came from
     double baselineSeconds = 0.0;  // sampling + fit
     nlohmann::json assetMetadata;  // parsed META, or null
+    std::vector<int> regionOfPixel;  // kRegionNames index of each pixel
+    SeamFigure seams;
 };
 
 // Key of a reference render: the scene as imported (sceneHash), the camera, the image size, spp, path

@@ -9,6 +9,8 @@
 #include "baker/validate/report.h"
 #include "baker/validate/sh_probes.h"
 #include "baker/validate/validate.h"
+#include "baker/bake/voxel_grid.h"
+#include "support/test_scenes.h"
 
 namespace nrad {
 namespace {
@@ -64,6 +66,66 @@ TEST(Metrics, ErrorImagesAndDecades) {
 }
 
 // A field that is exactly an L2 SH function per probe, trilinear in space, is recovered exactly.
+TEST(Metrics, ErrorDistributionAndRegionsOfKnownImages) {
+    // 200 pixels of reference 1; pixel k is 1 + k / 200. Relative error e_k = (k / 200) / 1.01, relMSE_k =
+    // (k / 200)^2 / 1.01: the median (nearest rank) is e_99, the 99th percentile e_197, and the worst 1% (2
+    // pixels, k = 198, 199) hold (198^2 + 199^2) / sum k^2 of the relMSE.
+    Image ref = constant(200, 1, glm::vec3(1.0f)), img = ref;
+    for (int k = 0; k < 200; ++k) img.pixels[size_t(k)] = glm::vec3(1.0f + float(k) / 200.0f);
+    ErrorDistribution d = errorDistribution(img, ref);
+    auto e = [](int k) { return double(float(k) / 200.0f) / 1.01; };
+    EXPECT_NEAR(d.medianRelativeError, e(99), 1e-6);
+    EXPECT_NEAR(d.p99RelativeError, e(197), 1e-6);
+    double sum = 0.0;
+    for (int k = 0; k < 200; ++k) sum += double(k) * double(k);
+    EXPECT_NEAR(d.worst1PercentShare, (198.0 * 198.0 + 199.0 * 199.0) / sum, 1e-4);
+    // Regions: even pixels 0, odd pixels 1, pixel 0 in none.
+    std::vector<int> region(200);
+    for (int k = 0; k < 200; ++k) region[size_t(k)] = k % 2;
+    region[0] = -1;
+    std::vector<RegionError> r = relMseByRegion(img, ref, region, 2);
+    ASSERT_EQ(r.size(), 2u);
+    EXPECT_EQ(r[0].pixels, 99u);
+    EXPECT_EQ(r[1].pixels, 100u);
+    double even = 0.0, odd = 0.0;
+    for (int k = 0; k < 200; ++k) (k % 2 ? odd : even) += std::pow(double(float(k) / 200.0f), 2) / 1.01;
+    EXPECT_NEAR(r[0].relMse, even / 99.0, 1e-6);
+    EXPECT_NEAR(r[1].relMse, odd / 100.0, 1e-6);
+    EXPECT_NEAR(r[0].shareOfImage + r[1].shareOfImage, 1.0, 1e-9);  // pixel 0 has no error
+    EXPECT_THROW(relMseByRegion(img, ref, std::vector<int>(3, 0), 2), std::invalid_argument);
+}
+
+TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
+    // A plane split by the grid's face x = 0 into two voxels whose networks output the constants 1 and 2:
+    // every sample across the face sees a jump of 1 around a mean of 1.5, relMSE 1 / (1.5^2 + 0.01).
+    Scene scene = test::makeLitPlane(0.5f, 1.0f);
+    VoxelGrid grid(scene.bounds, glm::uvec3(2, 1, 1));
+    format::Asset a;
+    a.header.flags = format::kFlagScatteredRadiance;
+    a.grid = grid.grid();
+    a.topology.outputTransform = format::OutputTransform::Exponential;
+    const size_t params = a.topology.parameterCount();
+    for (uint32_t v = 0; v < 2; ++v) {
+        a.voxels.push_back({v, 1.0f});
+        std::vector<float> w(params, 0.0f);
+        for (size_t c = 0; c < 3; ++c) w[params - 3 + c] = std::log1p(float(v + 1));  // output bias: y = log(1 + L)
+        a.weights.insert(a.weights.end(), w.begin(), w.end());
+    }
+    std::vector<uint8_t> bytes = format::encode(a);
+    NradAsset asset = nullptr;
+    ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
+    Accel accel(scene.mesh);
+    SeamFigure f = seamFigure(scene, accel, scene.cameras[0], 64, 64, a.grid, asset);
+    nradReleaseAsset(asset);
+    EXPECT_GT(f.points, 20u);
+    EXPECT_NEAR(f.relMse, 1.0 / (1.5 * 1.5 + 0.01), 2e-3);
+    EXPECT_NEAR(f.meanRelativeJump, 1.0 / (1.5 + 0.01), 2e-3);
+    // The voxel-border region: the two pixel columns either side of x = 0, nothing else.
+    std::vector<int> region = pixelRegions(scene, accel, scene.cameras[0], 64, 64, a.grid);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) EXPECT_EQ(region[size_t(y * 64 + x)], x == 31 || x == 32 ? 1 : 2) << x << ", " << y;
+}
+
 TEST(ShProbes, FitRecoversAnExactProbeField) {
     ShProbeGrid truth;
     truth.dims = {3, 2, 2};
