@@ -91,6 +91,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
 
     format::Asset& a = result.asset;
     a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
+    if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
     a.grid = grid.grid();
     a.topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
     a.topology.weightEncoding = settings.encoding;
@@ -121,7 +122,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"min_samples_per_voxel", s.minSamplesPerVoxel},
                  {"hidden", t.shape.hidden},
                  {"epochs", t.epochs},
-                 {"loss", lossName(t.loss)}};
+                 {"loss", lossName(t.loss)},
+                 {"demodulated", t.demodulate}};
     j["samples"] = result.sampleCount;
     // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
     std::vector<double> err;

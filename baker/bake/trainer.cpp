@@ -64,12 +64,20 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
 
     // Inputs and targets; the held-out split is a hash of (seed, voxel, sample), at least one on each side.
     std::vector<float> inputs(n * size_t(nIn));
-    std::vector<glm::vec3> targets(n);
+    std::vector<glm::vec3> targets(n), modulation(n, glm::vec3(1.0f)), weights(n, glm::vec3(1.0f));
     std::vector<size_t> train, heldOut;
     uint32_t splitSeed = hashCombine(hashCombine(settings.seed, 0x73706c74u), voxel);
     for (size_t i = 0; i < n; ++i) {
         encodeInput(grid, voxel, samples[i]->position, samples[i]->normal, samples[i]->wo, &inputs[i * size_t(nIn)]);
         targets[i] = samples[i]->radiance;
+        if (settings.demodulate) {
+            // The network learns radiance / reflectance (floored); a channel whose reflectance is below the
+            // floor weighs (R / floor)^2 in the loss: black has nothing to learn and is left free.
+            const glm::vec3 r = samples[i]->reflectance, d = glm::max(r, glm::vec3(eval::kMinReflectance));
+            targets[i] /= d;
+            modulation[i] = r;
+            weights[i] = (r / d) * (r / d);
+        }
         bool hold = float(hashCombine(splitSeed, uint32_t(i)) >> 8) * 0x1p-24f < settings.holdoutFraction;
         (hold ? heldOut : train).push_back(i);
     }
@@ -103,7 +111,8 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
         double e = 0.0;
         for (size_t i : set) {
             mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
-            e += relativeSquaredError(decodeOutput(result.transform, result.scale, y.data()), targets[i]);
+            // Judged as shaded: the prediction multiplied back by the reflectance, against the scattered radiance.
+            e += relativeSquaredError(modulation[i] * decodeOutput(result.transform, result.scale, y.data()), samples[i]->radiance);
         }
         return set.empty() ? 0.0 : e / double(set.size());
     };
@@ -137,7 +146,8 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
                         float l = luminance(pred);
                         weight = 1.0f / (l * l + 0.01f);
                     }
-                    for (int c = 0; c < nOut; ++c) dy[size_t(c)] = 2.0f * weight * (y[size_t(c)] - normalizedTarget(i, c));
+                    for (int c = 0; c < nOut; ++c)
+                        dy[size_t(c)] = 2.0f * weight * weights[i][c] * (y[size_t(c)] - normalizedTarget(i, c));
                     mlp.backward(dy.data(), ws, grad.data());
                 }
                 float inv = 1.0f / float(e - b);

@@ -36,6 +36,9 @@ struct TrainSettings {
     uint32_t seed = 0;
     int maxAttempts = 3;
     int curveEvery = 5;  // record the held-out error every N epochs
+    // Learn the scattered radiance divided by the surface's reflectance (nrad/eval.h, kFlagDemodulated), so
+    // the networks learn lighting and the material (textures included) is multiplied back when shading.
+    bool demodulate = true;
 };
 
 struct TrainCurvePoint {

@@ -156,6 +156,9 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 // added back by whoever shades (nrad/eval.h, shade()), so no network has to draw an
                 // emitter's edge. Rounding can leave -1 ulp: clamped.
                 t.radiance = glm::max(glm::vec3(sum / double(finite)) - si.emission, glm::vec3(0.0f));
+                float refl[3];
+                eval::reflectance(shadingSurface(si), glm::dot(si.ns, wo), refl);
+                t.reflectance = glm::vec3(refl[0], refl[1], refl[2]);
                 // The voxel the runtime will look up for p (the format's rule): a point on a border plane
                 // belongs to the voxel above it, whichever piece it was sampled from.
                 int64_t voxel = grid.voxelOf(p);

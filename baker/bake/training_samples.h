@@ -22,6 +22,7 @@ struct TrainingSample {
     glm::vec3 wo;  // unit, away from the surface
     glm::vec3 radiance;  // scattered radiance: mean of the finite path estimates minus the point's emission
     uint32_t voxel;
+    glm::vec3 reflectance{1.0f};  // eval::reflectance of the point's material towards wo (for demodulation)
 };
 
 struct SampleSettings {

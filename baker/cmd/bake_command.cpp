@@ -26,7 +26,7 @@ struct BakeOptions {
     NeeMode nee = NeeMode::Power;
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
     float learningRate = 0.01f;
-    bool quiet = false, noMetadata = false;
+    bool quiet = false, noMetadata = false, noDemodulate = false;
 };
 
 bool parseGrid(const std::string& s, glm::uvec3& out) {
@@ -129,6 +129,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.train.learningRate = o.learningRate;
     s.train.seed = o.seed;
     s.metadata = !o.noMetadata;
+    s.train.demodulate = !o.noDemodulate;
 
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
@@ -244,6 +245,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
     cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
+    cmd->add_flag("--no-demodulate", o->noDemodulate,
+                  "Networks learn the scattered radiance itself, not divided by the surface's reflectance");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
     return [o, cmd]() { return runBake(*o, cmd); };
 }

@@ -22,7 +22,8 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
     };
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) return st;
-    const uint32_t contentFlags = (info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u;
+    const uint32_t contentFlags = ((info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u) |
+                                  ((info.contentFlags & NRAD_CONTENT_DEMODULATED) ? format::kFlagDemodulated : 0u);
     return renderFirstHit(scene, accel, evaluate, contentFlags, camera, settings, image, stats, progress);
 }
 
@@ -42,7 +43,8 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
     NeuralRenderStats total;
 
     tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
-        std::vector<float> pos, nrm, dir, rgb, emission;
+        std::vector<float> pos, nrm, dir, rgb, cosNV;
+        std::vector<eval::Surface> surfaces;
         std::vector<uint8_t> flags;
         std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
         NeuralRenderStats local;
@@ -53,7 +55,8 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             pos.clear();
             nrm.clear();
             dir.clear();
-            emission.clear();
+            surfaces.clear();
+            cosNV.clear();
             pixelOf.clear();
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
@@ -70,8 +73,9 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                             pos.push_back(si.p[k]);
                             nrm.push_back(si.ns[k]);
                             dir.push_back(si.wo[k]);
-                            emission.push_back(si.emission[k]);
                         }
+                        surfaces.push_back(shadingSurface(si));
+                        cosNV.push_back(glm::dot(si.ns, si.wo));
                         pixelOf.push_back(uint32_t((y - y0) * ts + (x - x0)));
                     }
                 }
@@ -85,7 +89,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (size_t i = 0; i < n; ++i) {
                 float L[3];
-                eval::shade(contentFlags, &rgb[3 * i], &emission[3 * i], L);
+                eval::shade(contentFlags, &rgb[3 * i], surfaces[i], cosNV[i], L);
                 sum[pixelOf[i]] += glm::dvec3(L[0], L[1], L[2]);
                 local.outsideGrid += flags[i] == NRAD_POINT_OUTSIDE_GRID;
                 local.emptyVoxel += flags[i] == NRAD_POINT_EMPTY_VOXEL;

@@ -48,6 +48,18 @@ glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float 
     return e;
 }
 
+eval::Surface shadingSurface(const SurfaceInteraction& si) {
+    eval::Surface s;
+    for (int c = 0; c < 3; ++c) {
+        s.baseColor[c] = si.bsdf.baseColor[c];
+        s.emission[c] = si.emission[c];
+    }
+    s.metallic = si.bsdf.metallic;
+    s.roughness = si.bsdf.roughness;
+    s.specular = si.bsdf.specular;
+    return s;
+}
+
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction) {
     const TriangleMesh& mesh = scene.mesh;
     const glm::uvec3& tri = mesh.triangles[hit.triangle];

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <nrad/eval.h>
 
 #include "baker/render/accel.h"
 #include "baker/render/bsdf.h"
@@ -31,6 +32,10 @@ struct SurfaceInteraction {
 
 // Emitted radiance of a triangle at barycentrics (u, v), seen from a direction on the side `front`.
 glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front);
+
+// The material terms of the evaluation contract (nrad/eval.h) at an interaction: what an engine's G-buffer
+// holds there.
+eval::Surface shadingSurface(const SurfaceInteraction& si);
 
 // Builds the interaction for a hit of a ray travelling along `direction`.
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);

@@ -344,6 +344,11 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         SampleStats sst;
         say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths)");
         std::vector<TrainingSample> samples = generateTrainingSamples(scene, tracer, grid, pieces, ss, sst);
+        // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
+        // probes store lighting and multiply by the albedo), so both are shaded alike.
+        const bool demodulated = (info.contentFlags & NRAD_CONTENT_DEMODULATED) != 0;
+        if (demodulated)
+            for (TrainingSample& t : samples) t.radiance /= glm::max(t.reflectance, glm::vec3(eval::kMinReflectance));
         r.baselineTrainingSamples = samples.size();
         glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
         glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
@@ -362,8 +367,8 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         MethodResult m;
         m.name = "sh-probes";
         NeuralRenderStats st;
-        // The probes are fitted to the same scattered-radiance samples as the networks: shaded alike.
-        renderFirstHit(scene, accel, evaluate, format::kFlagScatteredRadiance, camera, fh, m.image, &st);
+        renderFirstHit(scene, accel, evaluate, format::kFlagScatteredRadiance | (demodulated ? format::kFlagDemodulated : 0u), camera,
+                       fh, m.image, &st);
         score(m, st, r.reference, settings.exposure, r.regionOfPixel);
         m.bytes = probes.bytes();
         equalError(m, r.curve);

@@ -390,7 +390,8 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.parametersPerNetwork = a->paramsPerNetwork;
         r.weightEncoding = uint32_t(t.weightEncoding);
         r.outputTransform = uint32_t(t.outputTransform);
-        r.contentFlags = (a->asset.header.flags & format::kFlagScatteredRadiance) ? NRAD_CONTENT_SCATTERED_RADIANCE : 0u;
+        r.contentFlags = ((a->asset.header.flags & format::kFlagScatteredRadiance) ? NRAD_CONTENT_SCATTERED_RADIANCE : 0u) |
+                         ((a->asset.header.flags & format::kFlagDemodulated) ? NRAD_CONTENT_DEMODULATED : 0u);
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
@@ -446,6 +447,37 @@ NradStatus nradEvaluateBatchSoA(NradAsset a, size_t count, const NradBatchSoA* b
     return guarded([&] {
         rt::BatchIo v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags};
         return evaluateBatch(*a, count, v);
+    });
+}
+
+NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, const float* normals, const float* directions,
+                          const NradSurface* surfaces, float* rgb, uint8_t* pointFlags) {
+    if (!a || (count > 0 && (!positions || !normals || !directions || !surfaces || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (count == 0) return NRAD_OK;
+    return guarded([&] {
+        rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
+                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
+        NradStatus st = evaluateBatch(*a, count, v);
+        if (st != NRAD_OK) return st;
+        const uint32_t flags = a->asset.header.flags;
+        for (size_t i = 0; i < count; ++i) {
+            eval::Surface s;
+            const NradSurface& in = surfaces[i];
+            for (int c = 0; c < 3; ++c) {
+                s.baseColor[c] = in.baseColor[c];
+                s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
+            }
+            s.metallic = in.metallic;
+            s.roughness = in.roughness;
+            s.specular = in.specular;
+            const float* n = normals + 3 * i;
+            const float* d = directions + 3 * i;
+            const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+            float out[3];
+            eval::shade(flags, rgb + 3 * i, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+            for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
+        }
+        return NRAD_OK;
     });
 }
 

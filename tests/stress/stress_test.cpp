@@ -97,7 +97,8 @@ TEST_P(Furnace, PathTracerWithinOnePercentAndTheAssetWithinItsBound) {
     const int n = 2000;
     NradAssetInfo info;
     ASSERT_EQ(b.asset.info(info), NRAD_OK);
-    const uint32_t contentFlags = (info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u;
+    const uint32_t contentFlags = ((info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u) |
+                                  ((info.contentFlags & NRAD_CONTENT_DEMODULATED) ? format::kFlagDemodulated : 0u);
     for (int i = 0; i < n; ++i) {
         // A point on a random triangle of the sphere, the inward normal, a direction in its hemisphere.
         const size_t tri = size_t(rng()) % scene.mesh.triangles.size();
@@ -112,10 +113,18 @@ TEST_P(Furnace, PathTracerWithinOnePercentAndTheAssetWithinItsBound) {
         uint32_t flag;
         ASSERT_EQ(b.asset.evaluate(&p.x, &nrm.x, &d.x, rgb, &flag), NRAD_OK);
         ASSERT_EQ(flag, uint32_t(NRAD_POINT_OK));
-        // Shaded as the contract says: the asset stores L - Le, the material's emission is added back.
-        const glm::vec3 le = scene.materials[scene.mesh.materialIds[tri]].emission;
+        // Shaded as the contract says: multiplied back by the material's reflectance, its emission added.
+        const Material& mat = scene.materials[scene.mesh.materialIds[tri]];
+        eval::Surface surface;
+        for (int c = 0; c < 3; ++c) {
+            surface.baseColor[c] = mat.baseColor[c];
+            surface.emission[c] = mat.emission[c];
+        }
+        surface.metallic = mat.metallic;
+        surface.roughness = mat.roughness;
+        surface.specular = mat.specular;
         float shaded[3];
-        eval::shade(contentFlags, rgb, &le.x, shaded);
+        eval::shade(contentFlags, rgb, surface, glm::dot(nrm, d), shaded);
         errors.push_back(std::abs((shaded[0] + shaded[1] + shaded[2]) / 3.0 / expected - 1.0));
     }
     std::sort(errors.begin(), errors.end());

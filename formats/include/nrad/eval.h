@@ -138,12 +138,61 @@ inline void decodeOutputs(format::OutputTransform transform, float scale, const 
 
 // ----- shading: what the networks store, and how it is recombined with the material ------------------------------
 
-// The radiance leaving a surface point towards the viewer, from what the asset returns there and the
-// surface's own emission towards the viewer (its material's emissive term, textures included): an asset
-// with format::kFlagScatteredRadiance stores L - Le, so Le is added back; an asset without it stores L.
-inline void shade(uint32_t contentFlags, const float assetRadiance[3], const float emission[3], float out[3]) {
+// The material terms a shader has at a pixel (an engine's G-buffer): base colour (textures applied, linear),
+// metallic, roughness (perceptual), the KHR_materials_specular factor (1 where the material has none) and
+// the emitted radiance towards the viewer.
+struct Surface {
+    float baseColor[3] = {1.0f, 1.0f, 1.0f};
+    float metallic = 0.0f;
+    float roughness = 1.0f;
+    float specular = 1.0f;
+    float emission[3] = {0.0f, 0.0f, 0.0f};
+};
+
+// The reflectance an asset with format::kFlagDemodulated divides by: the diffuse albedo
+// baseColor (1 - metallic) plus the specular lobe's directional albedo F0 A + w B for the viewing angle,
+// with F0 = 0.04 specular (1 - metallic) + baseColor metallic, w = specular (1 - metallic) + metallic, and
+// (A, B) Karis's fit of the GGX split-sum terms over roughness and n.wo ("Physically Based Shading on
+// Mobile", 2014). A demodulation factor both sides agree on, not the BSDF's exact albedo; about 0 to 1.1.
+inline void reflectance(const Surface& s, float cosNV, float out[3]) {
+    const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
+    const float rough = s.roughness < 0.0f ? 0.0f : (s.roughness > 1.0f ? 1.0f : s.roughness);
+    const float m = s.metallic < 0.0f ? 0.0f : (s.metallic > 1.0f ? 1.0f : s.metallic);
+    const float nv = cosNV > 0.0f ? (cosNV < 1.0f ? cosNV : 1.0f) : 0.0f;
+    float r[4];
+    for (int i = 0; i < 4; ++i) r[i] = rough * c0[i] + c1[i];
+    const float a004 = std::fmin(r[0] * r[0], std::exp2(-9.28f * nv)) * r[0] + r[1];
+    const float A = std::fmax(0.0f, -1.04f * a004 + r[2]), B = std::fmax(0.0f, 1.04f * a004 + r[3]);
+    const float w = s.specular * (1.0f - m) + m;
+    for (int c = 0; c < 3; ++c) {
+        const float base = s.baseColor[c] > 0.0f ? (s.baseColor[c] < 1.0f ? s.baseColor[c] : 1.0f) : 0.0f;
+        const float f0 = 0.04f * s.specular * (1.0f - m) + base * m;
+        out[c] = base * (1.0f - m) + f0 * A + w * B;
+        if (!(out[c] > 0.0f)) out[c] = 0.0f;  // NaN too
+    }
+}
+
+// Training divides by the reflectance floored at this (a black channel has nothing to learn; its loss weight
+// is (R / floored R)^2, so it is left free), shading multiplies by the reflectance itself.
+constexpr float kMinReflectance = 0.02f;
+
+// The radiance leaving a surface point towards the viewer, from what the asset returns there, the surface's
+// material and the cosine between its shading normal and the direction towards the viewer:
+//   flags 0:                           L = asset
+//   kFlagScatteredRadiance:            L = asset + Le
+//   kFlagScatteredRadiance | Demod.:   L = R(material, n.wo) asset + Le
+inline void shade(uint32_t contentFlags, const float assetRadiance[3], const Surface& surface, float cosNV, float out[3]) {
     const bool scattered = (contentFlags & format::kFlagScatteredRadiance) != 0;
-    for (int c = 0; c < 3; ++c) out[c] = assetRadiance[c] + (scattered ? emission[c] : 0.0f);
+    float r[3] = {1.0f, 1.0f, 1.0f};
+    if (contentFlags & format::kFlagDemodulated) reflectance(surface, cosNV, r);
+    for (int c = 0; c < 3; ++c) out[c] = r[c] * assetRadiance[c] + (scattered ? surface.emission[c] : 0.0f);
+}
+
+// Without material terms (emission only): for assets that are not demodulated.
+inline void shade(uint32_t contentFlags, const float assetRadiance[3], const float emission[3], float out[3]) {
+    Surface s;
+    for (int c = 0; c < 3; ++c) s.emission[c] = emission[c];
+    shade(contentFlags & ~format::kFlagDemodulated, assetRadiance, s, 1.0f, out);
 }
 
 }  // namespace nrad::eval

@@ -23,7 +23,8 @@ constexpr uint16_t kVersionMinor = 0;  // a reader accepts newer minors (new opt
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
-constexpr uint32_t kKnownFlags = kFlagScatteredRadiance;
+constexpr uint32_t kFlagDemodulated = 2u;  // divided by the surface's reflectance, multiplied back when shading
+constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated;
 
 constexpr uint32_t kHeaderSize = 64;
 constexpr uint32_t kSectionRecordSize = 32;

@@ -88,6 +88,9 @@ typedef struct NradAssetInfo {
 
 /* contentFlags: the radiance returned excludes the surface's own emission (add it when shading). */
 #define NRAD_CONTENT_SCATTERED_RADIANCE 1u
+/* contentFlags: the radiance returned is divided by the surface's reflectance (multiply it back when shading:
+ * nradShadeBatch does both). */
+#define NRAD_CONTENT_DEMODULATED 2u
 
 NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
 /* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels. */
@@ -125,6 +128,27 @@ typedef struct NradBatchSoA {
     uint8_t* pointFlags; /* may be null */
 } NradBatchSoA;
 NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const NradBatchSoA* batch);
+
+/* ----- shading --------------------------------------------------------------------------------------- */
+
+/* The material terms a G-buffer holds at a pixel: base colour (linear, textures applied), metallic, roughness
+ * (perceptual), the KHR_materials_specular factor (1 if the material has none), and the radiance the surface
+ * emits towards the viewer. */
+typedef struct NradSurface {
+    float baseColor[3];
+    float metallic;
+    float roughness;
+    float specular;
+    float emission[3];
+} NradSurface;
+
+/* The final radiance leaving each point towards the viewer: the asset's evaluation recombined with the
+ * surface's material by the asset's contract (docs/runtime.md, "Shading contract"): multiplied by the
+ * reflectance if the asset is demodulated, plus the emission if it stores scattered radiance. Arguments as
+ * nradEvaluateBatch, and `surfaces` (count). A point outside the grid or in an empty voxel gets its emission
+ * only (and its flag). */
+NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+                          const float* directions, const NradSurface* surfaces, float* rgb, uint8_t* pointFlags);
 
 /* ----- kernels --------------------------------------------------------------------------------------- */
 
