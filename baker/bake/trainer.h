@@ -32,7 +32,7 @@ struct TrainSettings {
     float learningRate = 0.01f;  // decays exponentially to a tenth over the epochs
     float holdoutFraction = 0.1f;
     int patience = 300;  // epochs without a better held-out error before stopping
-    LossKind loss = LossKind::Log;
+    LossKind loss = LossKind::RelativeL2;
     uint32_t seed = 0;
     int maxAttempts = 3;
     int curveEvery = 5;  // record the held-out error every N epochs

@@ -26,8 +26,8 @@ struct TrainingSample {
 };
 
 struct SampleSettings {
-    uint32_t points = 10000;
-    uint32_t paths = 512;
+    uint32_t points = 160000;
+    uint32_t paths = 32;
     int maxDepth = 6;  // segments, counting the (virtual) one that reached the point; 0 = unbounded
     uint32_t seed = 0;
     uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area

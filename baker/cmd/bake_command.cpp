@@ -21,8 +21,9 @@ namespace {
 
 struct BakeOptions {
     std::string scene, output, config, stats;
-    std::string grid = "3", hidden = "9", loss = "log-l2", encoding = "fp16";
-    uint32_t points = 10000, paths = 512, seed = 0, minSamples = 64;
+    // Defaults from the settings themselves (one definition; chosen by measurement, docs/training.md).
+    std::string grid = "3", hidden = "9", loss = lossName(TrainSettings{}.loss), encoding = "fp16";
+    uint32_t points = SampleSettings{}.points, paths = SampleSettings{}.paths, seed = 0, minSamples = 64;
     NeeMode nee = NeeMode::Power;
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
     float learningRate = 0.01f;
@@ -222,8 +223,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("scene", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("-o,--output", o->output, "Output asset (.nrad)")->required();
     cmd->add_option("--grid", o->grid, "Voxel grid: N (cubic) or NxMxK (default 3)");
-    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 10000)");
-    cmd->add_option("--paths", o->paths, "Paths per training sample (default 512)");
+    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 160000)");
+    cmd->add_option("--paths", o->paths, "Paths per training sample (default 32)");
     cmd->add_option("--nee", o->nee,
                     "Light selection of the training paths: power (default), uniform, or learned (a selection network "
                     "trained on warm-up paths from the training points first)")
@@ -237,7 +238,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--batch-size", o->batch, "Mini-batch size (default 32)");
     cmd->add_option("--patience", o->patience, "Stop a voxel after this many epochs without a better held-out error (default 300)");
     cmd->add_option("--learning-rate", o->learningRate, "Adam learning rate at the start (default 0.01)");
-    cmd->add_option("--loss", o->loss, "l2, relative-l2 or log-l2 (default)");
+    cmd->add_option("--loss", o->loss, "l2, relative-l2 (default) or log-l2");
     cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
     cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
