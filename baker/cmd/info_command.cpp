@@ -38,9 +38,10 @@ int runInfo(const std::string& path) {
                 t.outputs, t.outputTransform == format::OutputTransform::Exponential ? "scale x (exp(y) - 1)" : "scale x max(0, y)",
                 (unsigned long long)t.parameterCount(), t.weightEncoding == format::WeightEncoding::Float16 ? "fp16" : "fp32",
                 (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.voxels.size()));
-    std::printf("stores: %s\n", (a.header.flags & format::kFlagScatteredRadiance)
-                                    ? "scattered radiance L - Le (shading adds the surface's own emission)"
-                                    : "outgoing radiance L (emission included)");
+    std::printf("stores: %s%s\n",
+                (a.header.flags & format::kFlagScatteredRadiance) ? "scattered radiance L - Le (shading adds the surface's own emission)"
+                                                                  : "outgoing radiance L (emission included)",
+                (a.header.flags & format::kFlagDemodulated) ? ", divided by the surface's reflectance (shading multiplies it back)" : "");
     std::printf("metadata: %s\n", a.metadata.empty() ? "(none)" : a.metadata.c_str());
     return kExitOk;
 }
