@@ -73,7 +73,7 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
         if (settings.demodulate) {
             // The network learns radiance / reflectance (floored); a channel whose reflectance is below the
             // floor weighs (R / floor)^2 in the loss: black has nothing to learn and is left free.
-            const glm::vec3 r = samples[i]->reflectance, d = glm::max(r, glm::vec3(eval::kMinReflectance));
+            const glm::vec3 r = samples[i]->reflectance, d = demodulationDivisor(*samples[i]);
             targets[i] /= d;
             modulation[i] = r;
             weights[i] = (r / d) * (r / d);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <nrad/eval.h>
 
 #include "baker/bake/voxel_grid.h"
 #include "baker/render/path_tracer.h"
@@ -24,6 +25,9 @@ struct TrainingSample {
     uint32_t voxel;
     glm::vec3 reflectance{1.0f};  // eval::reflectance of the point's material towards wo (for demodulation)
 };
+
+// What a demodulated network learns for sample t is t.radiance / this (the reflectance, floored).
+inline glm::vec3 demodulationDivisor(const TrainingSample& t) { return glm::max(t.reflectance, glm::vec3(eval::kMinReflectance)); }
 
 struct SampleSettings {
     uint32_t points = 160000;

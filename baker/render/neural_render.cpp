@@ -22,9 +22,7 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
     };
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) return st;
-    const uint32_t contentFlags = ((info.contentFlags & NRAD_CONTENT_SCATTERED_RADIANCE) ? format::kFlagScatteredRadiance : 0u) |
-                                  ((info.contentFlags & NRAD_CONTENT_DEMODULATED) ? format::kFlagDemodulated : 0u);
-    return renderFirstHit(scene, accel, evaluate, contentFlags, camera, settings, image, stats, progress);
+    return renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, settings, image, stats, progress);  // same bits
 }
 
 NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,

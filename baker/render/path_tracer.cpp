@@ -57,10 +57,6 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
     tfar = c > 0.0f ? ls.distance - margin / c : 0.0f;
 }
 
-namespace {
-
-}  // namespace
-
 glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
                                RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee) const {
     ++counters.primary;

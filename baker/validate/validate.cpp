@@ -53,17 +53,19 @@ void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference,
     m.emptyVoxel = st.emptyVoxel;
 }
 
-// The first hit through each pixel's centre: the voxel it lies in (-1: none) and whether it emits.
-void firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid,
-               std::vector<int64_t>& voxel, std::vector<uint8_t>& emitter, std::vector<glm::vec3>* points = nullptr,
-               std::vector<glm::vec3>* normals = nullptr, std::vector<glm::vec3>* directions = nullptr) {
+}  // namespace
+
+FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid) {
     CameraRays rays(camera, width, height);
     const size_t n = size_t(width) * size_t(height);
-    voxel.assign(n, -1);
-    emitter.assign(n, 0);
-    if (points) points->assign(n, glm::vec3(std::numeric_limits<float>::quiet_NaN()));
-    if (normals) normals->assign(n, glm::vec3(0.0f));
-    if (directions) directions->assign(n, glm::vec3(0.0f));
+    FirstHits h;
+    h.width = width;
+    h.height = height;
+    h.voxel.assign(n, -1);
+    h.emitter.assign(n, 0);
+    h.points.assign(n, glm::vec3(std::numeric_limits<float>::quiet_NaN()));
+    h.normals.assign(n, glm::vec3(0.0f));
+    h.directions.assign(n, glm::vec3(0.0f));
     tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
         for (int y = rows.begin(); y != rows.end(); ++y)
             for (int x = 0; x < width; ++x) {
@@ -74,66 +76,57 @@ void firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int
                 SurfaceInteraction si = makeInteraction(scene, hit, d);
                 const size_t i = size_t(y) * size_t(width) + size_t(x);
                 const float p[3] = {si.p.x, si.p.y, si.p.z};
-                voxel[i] = eval::locate(grid, p).voxel;
-                emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
-                if (points) (*points)[i] = si.p;
-                if (normals) (*normals)[i] = si.ns;
-                if (directions) (*directions)[i] = si.wo;
+                h.voxel[i] = eval::locate(grid, p).voxel;
+                h.emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
+                h.points[i] = si.p;
+                h.normals[i] = si.ns;
+                h.directions[i] = si.wo;
             }
     });
+    return h;
 }
 
-}  // namespace
-
-std::vector<int> pixelRegions(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
-                              const format::Grid& grid) {
-    std::vector<int64_t> voxel;
-    std::vector<uint8_t> emitter;
-    firstHits(scene, accel, camera, width, height, grid, voxel, emitter);
-    std::vector<int> region(voxel.size(), 2);
+std::vector<int> pixelRegions(const FirstHits& h) {
+    const int width = h.width, height = h.height;
+    std::vector<int> region(h.voxel.size(), 2);
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
             const size_t i = size_t(y) * size_t(width) + size_t(x);
-            if (emitter[i]) {
+            if (h.emitter[i]) {
                 region[i] = 0;
                 continue;
             }
-            if (voxel[i] < 0) continue;
+            if (h.voxel[i] < 0) continue;
             bool border = false;
             for (int dy = -1; dy <= 1 && !border; ++dy)
                 for (int dx = -1; dx <= 1 && !border; ++dx) {
                     int u = x + dx, v = y + dy;
                     if (u < 0 || v < 0 || u >= width || v >= height) continue;
-                    int64_t other = voxel[size_t(v) * size_t(width) + size_t(u)];
-                    border = other >= 0 && other != voxel[i];
+                    int64_t other = h.voxel[size_t(v) * size_t(width) + size_t(u)];
+                    border = other >= 0 && other != h.voxel[i];
                 }
             if (border) region[i] = 1;
         }
     return region;
 }
 
-SeamFigure seamFigure(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
-                      const format::Grid& grid, NradAsset asset) {
-    std::vector<int64_t> voxel;
-    std::vector<uint8_t> emitter;
-    std::vector<glm::vec3> points, normals, directions;
-    firstHits(scene, accel, camera, width, height, grid, voxel, emitter, &points, &normals, &directions);
+SeamFigure seamFigure(const FirstHits& h, const format::Grid& grid, NradAsset asset) {
     // For each hit near an interior face: the point on the face, nudged to either side.
     std::vector<float> p, n, d;
-    for (size_t i = 0; i < voxel.size(); ++i) {
-        if (voxel[i] < 0 || emitter[i]) continue;
+    for (size_t i = 0; i < h.voxel.size(); ++i) {
+        if (h.voxel[i] < 0 || h.emitter[i]) continue;
         for (int k = 0; k < 3; ++k) {
             const float factor = eval::gridFactor(grid, k);
-            const float t = eval::gridCoordinate(points[i][k], grid.lower[k], factor);
+            const float t = eval::gridCoordinate(h.points[i][k], grid.lower[k], factor);
             const float face = std::round(t);
             if (face < 1.0f || face > float(grid.dims[k]) - 1.0f || std::abs(t - face) > 0.02f) continue;
             for (float side : {-1e-4f, 1e-4f}) {
-                glm::vec3 q = points[i];
+                glm::vec3 q = h.points[i];
                 q[k] = grid.lower[k] + (face + side) / factor;
                 for (int c = 0; c < 3; ++c) {
                     p.push_back(q[c]);
-                    n.push_back(normals[i][c]);
-                    d.push_back(directions[i][c]);
+                    n.push_back(h.normals[i][c]);
+                    d.push_back(h.directions[i][c]);
                 }
             }
         }
@@ -291,8 +284,9 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         assetGrid.upper[k] = info.gridUpper[k];
         assetGrid.dims[k] = info.gridDims[k];
     }
-    r.regionOfPixel = pixelRegions(scene, accel, camera, r.width, r.height, assetGrid);
-    r.seams = seamFigure(scene, accel, camera, r.width, r.height, assetGrid, asset);
+    const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, assetGrid);
+    r.regionOfPixel = pixelRegions(hits);
+    r.seams = seamFigure(hits, assetGrid, asset);
     {
         char line[200];
         std::snprintf(line, sizeof line, "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g",
@@ -346,9 +340,8 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         std::vector<TrainingSample> samples = generateTrainingSamples(scene, tracer, grid, pieces, ss, sst);
         // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
         // probes store lighting and multiply by the albedo), so both are shaded alike.
-        const bool demodulated = (info.contentFlags & NRAD_CONTENT_DEMODULATED) != 0;
-        if (demodulated)
-            for (TrainingSample& t : samples) t.radiance /= glm::max(t.reflectance, glm::vec3(eval::kMinReflectance));
+        if (info.contentFlags & NRAD_CONTENT_DEMODULATED)
+            for (TrainingSample& t : samples) t.radiance /= demodulationDivisor(t);
         r.baselineTrainingSamples = samples.size();
         glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
         glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
@@ -367,8 +360,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         MethodResult m;
         m.name = "sh-probes";
         NeuralRenderStats st;
-        renderFirstHit(scene, accel, evaluate, format::kFlagScatteredRadiance | (demodulated ? format::kFlagDemodulated : 0u), camera,
-                       fh, m.image, &st);
+        renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, fh, m.image, &st);
         score(m, st, r.reference, settings.exposure, r.regionOfPixel);
         m.bytes = probes.bytes();
         equalError(m, r.curve);

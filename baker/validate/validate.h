@@ -76,13 +76,19 @@ struct SeamFigure {
     double meanRelativeJump = 0.0;  // mean of |La - Lb| / ((La + Lb) / 2 + 0.01)
 };
 
-// The kRegionNames region of every pixel of a width x height view (row-major), from the first hit through
-// each pixel's centre and the asset's grid.
-std::vector<int> pixelRegions(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
-                              const format::Grid& grid);
-// The seam figure of `asset` on the surface points a width x height view sees.
-SeamFigure seamFigure(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height,
-                      const format::Grid& grid, NradAsset asset);
+// What the centre of each pixel of a width x height view sees (row-major): the first hit's voxel in the
+// asset's grid (-1: none), whether it emits, its point, shading normal and direction towards the camera.
+struct FirstHits {
+    int width = 0, height = 0;
+    std::vector<int64_t> voxel;
+    std::vector<uint8_t> emitter;
+    std::vector<glm::vec3> points, normals, directions;
+};
+FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid);
+// The kRegionNames region of every pixel.
+std::vector<int> pixelRegions(const FirstHits& hits);
+// The seam figure of `asset` on the surface points the view sees.
+SeamFigure seamFigure(const FirstHits& hits, const format::Grid& grid, NradAsset asset);
 
 struct ValidationResult {
     std::string scenePath, assetPath;

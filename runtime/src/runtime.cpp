@@ -18,6 +18,10 @@
 
 using namespace nrad;
 
+// NradAssetInfo.contentFlags hands the header's flags through: the C API's names for the same bits.
+static_assert(NRAD_CONTENT_SCATTERED_RADIANCE == format::kFlagScatteredRadiance, "content flag bits");
+static_assert(NRAD_CONTENT_DEMODULATED == format::kFlagDemodulated, "content flag bits");
+
 struct NradAsset_ {
     format::Asset asset;  // decoded; weights already in fp32
     uint64_t fileBytes = 0;
@@ -390,8 +394,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.parametersPerNetwork = a->paramsPerNetwork;
         r.weightEncoding = uint32_t(t.weightEncoding);
         r.outputTransform = uint32_t(t.outputTransform);
-        r.contentFlags = ((a->asset.header.flags & format::kFlagScatteredRadiance) ? NRAD_CONTENT_SCATTERED_RADIANCE : 0u) |
-                         ((a->asset.header.flags & format::kFlagDemodulated) ? NRAD_CONTENT_DEMODULATED : 0u);
+        r.contentFlags = a->asset.header.flags & format::kKnownFlags;  // NRAD_CONTENT_* are the header's flags
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +

@@ -188,11 +188,5 @@ inline void shade(uint32_t contentFlags, const float assetRadiance[3], const Sur
     for (int c = 0; c < 3; ++c) out[c] = r[c] * assetRadiance[c] + (scattered ? surface.emission[c] : 0.0f);
 }
 
-// Without material terms (emission only): for assets that are not demodulated.
-inline void shade(uint32_t contentFlags, const float assetRadiance[3], const float emission[3], float out[3]) {
-    Surface s;
-    for (int c = 0; c < 3; ++c) s.emission[c] = emission[c];
-    shade(contentFlags & ~format::kFlagDemodulated, assetRadiance, s, 1.0f, out);
-}
 
 }  // namespace nrad::eval

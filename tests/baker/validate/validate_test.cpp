@@ -115,13 +115,14 @@ TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
     NradAsset asset = nullptr;
     ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
     Accel accel(scene.mesh);
-    SeamFigure f = seamFigure(scene, accel, scene.cameras[0], 64, 64, a.grid, asset);
+    const FirstHits hits = firstHits(scene, accel, scene.cameras[0], 64, 64, a.grid);
+    SeamFigure f = seamFigure(hits, a.grid, asset);
     nradReleaseAsset(asset);
     EXPECT_GT(f.points, 20u);
     EXPECT_NEAR(f.relMse, 1.0 / (1.5 * 1.5 + 0.01), 2e-3);
     EXPECT_NEAR(f.meanRelativeJump, 1.0 / (1.5 + 0.01), 2e-3);
     // The voxel-border region: the two pixel columns either side of x = 0, nothing else.
-    std::vector<int> region = pixelRegions(scene, accel, scene.cameras[0], 64, 64, a.grid);
+    std::vector<int> region = pixelRegions(hits);
     for (int y = 0; y < 64; ++y)
         for (int x = 0; x < 64; ++x) EXPECT_EQ(region[size_t(y * 64 + x)], x == 31 || x == 32 ? 1 : 2) << x << ", " << y;
 }
