@@ -2,6 +2,7 @@
 #include "baker/bake/baker.h"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -71,9 +72,10 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     result.sampleCount = samples.size();
     result.timings.sampling = since(t1);
 
-    // Group by voxel (stable: the sample order is fixed), then train every occupied voxel in parallel.
-    std::vector<std::vector<const TrainingSample*>> byVoxel(grid.voxelCount());
-    for (const TrainingSample& s : samples) byVoxel[s.voxel].push_back(&s);
+    // The samples of each voxel's network (its own, plus its neighbours' within the blending band, in the
+    // fixed sample order), then train every occupied voxel in parallel.
+    const float band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
+    const std::vector<std::vector<VoxelSample>> byVoxel = samplesByNetwork(grid, band, samples);
     std::vector<uint32_t> occupied;
     for (uint32_t v = 0; v < grid.voxelCount(); ++v)
         if (!byVoxel[v].empty()) occupied.push_back(v);
@@ -82,7 +84,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     std::atomic<size_t> done{0};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k != r.end(); ++k) {
-            result.voxels[k] = trainVoxel(grid, occupied[k], byVoxel[occupied[k]], settings.train);
+            result.voxels[k] = trainVoxel(occupied[k], byVoxel[occupied[k]], settings.train);
             size_t d = ++done;
             if (progress.training) progress.training(double(d) / double(occupied.size()));
         }
@@ -93,6 +95,10 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
     if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
     a.grid = grid.grid();
+    if (band > 0.0f) {
+        a.header.flags |= format::kFlagBlended;
+        a.grid.blendBand = band;
+    }
     a.topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
     a.topology.weightEncoding = settings.encoding;
     a.topology.outputTransform =
@@ -123,7 +129,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"hidden", t.shape.hidden},
                  {"epochs", t.epochs},
                  {"loss", lossName(t.loss)},
-                 {"demodulated", t.demodulate}};
+                 {"demodulated", t.demodulate},
+                 {"blend_band", settings.blendBand}};
     j["samples"] = result.sampleCount;
     // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
     std::vector<double> err;

@@ -53,13 +53,39 @@ double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& refere
     return e / 3.0;
 }
 
+std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples) {
+    std::vector<std::vector<VoxelSample>> out(grid.voxelCount());
+    std::vector<uint8_t> occupied(grid.voxelCount(), 0);
+    for (const TrainingSample& s : samples) occupied[s.voxel] = 1;
+    const format::Grid& g = grid.grid();
+    const float factor[3] = {eval::gridFactor(g, 0), eval::gridFactor(g, 1), eval::gridFactor(g, 2)};
+    for (const TrainingSample& s : samples) {
+        const float p[3] = {s.position.x, s.position.y, s.position.z};
+        eval::Support sup[eval::kMaxSupports];
+        int count = eval::supports(g, factor, band, p, sup);
+        count = eval::keepOccupied(sup, count, [&](int64_t v) { return occupied[size_t(v)] != 0; });
+        for (int k = 0; k < count; ++k)
+            out[size_t(sup[k].voxel)].push_back({&s, sup[k].weight, glm::vec3(sup[k].local[0], sup[k].local[1], sup[k].local[2])});
+    }
+    return out;
+}
+
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
                             const TrainSettings& settings) {
+    std::vector<VoxelSample> v;
+    v.reserve(samples.size());
+    for (const TrainingSample* s : samples) v.push_back({s, 1.0f, grid.positionInVoxel(s->position, voxel)});
+    return trainVoxel(voxel, v, settings);
+}
+
+VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
     auto start = std::chrono::steady_clock::now();
     VoxelTrainResult result;
     result.voxel = voxel;
     result.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-    const size_t n = samples.size();
+    const size_t n = entries.size();
+    std::vector<const TrainingSample*> samples(n);
+    for (size_t i = 0; i < n; ++i) samples[i] = entries[i].sample;
     const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
 
     // Inputs and targets; the held-out split is a hash of (seed, voxel, sample), at least one on each side.
@@ -68,8 +94,11 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
     std::vector<size_t> train, heldOut;
     uint32_t splitSeed = hashCombine(hashCombine(settings.seed, 0x73706c74u), voxel);
     for (size_t i = 0; i < n; ++i) {
-        encodeInput(grid, voxel, samples[i]->position, samples[i]->normal, samples[i]->wo, &inputs[i * size_t(nIn)]);
-        targets[i] = samples[i]->radiance;
+        const TrainingSample& t = *samples[i];
+        const float local[3] = {entries[i].local.x, entries[i].local.y, entries[i].local.z};
+        const float normal[3] = {t.normal.x, t.normal.y, t.normal.z}, direction[3] = {t.wo.x, t.wo.y, t.wo.z};
+        eval::encodeInputs(local, normal, direction, &inputs[i * size_t(nIn)]);
+        targets[i] = t.radiance;
         if (settings.demodulate) {
             // The network learns radiance / reflectance (floored); a channel whose reflectance is below the
             // floor weighs (R / floor)^2 in the loss: black has nothing to learn and is left free.
@@ -78,6 +107,7 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
             modulation[i] = r;
             weights[i] = (r / d) * (r / d);
         }
+        weights[i] *= entries[i].weight;
         bool hold = float(hashCombine(splitSeed, uint32_t(i)) >> 8) * 0x1p-24f < settings.holdoutFraction;
         (hold ? heldOut : train).push_back(i);
     }
@@ -93,10 +123,13 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
     result.heldOutCount = heldOut.size();
     const std::vector<size_t>& evalSet = heldOut.empty() ? train : heldOut;  // one sample: judged on itself
 
-    // Per-voxel scale: the mean training luminance, so that the network works with values near one.
-    double meanLum = 0.0;
-    for (size_t i : train) meanLum += std::max(0.0f, luminance(targets[i]));
-    meanLum = train.empty() ? 0.0 : meanLum / double(train.size());
+    // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
+    double meanLum = 0.0, weightSum = 0.0;
+    for (size_t i : train) {
+        meanLum += double(entries[i].weight) * std::max(0.0f, luminance(targets[i]));
+        weightSum += double(entries[i].weight);
+    }
+    meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;
     result.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
     const float invScale = 1.0f / result.scale;
     auto normalizedTarget = [&](size_t i, int c) {
@@ -108,13 +141,16 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
     MlpWorkspace ws;
     std::vector<float> y(static_cast<size_t>(nOut)), dy(static_cast<size_t>(nOut)), grad(mlp.parameters().size());
     auto evaluate = [&](const std::vector<size_t>& set) {
-        double e = 0.0;
+        double e = 0.0, w = 0.0;
         for (size_t i : set) {
             mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
-            // Judged as shaded: the prediction multiplied back by the reflectance, against the scattered radiance.
-            e += relativeSquaredError(modulation[i] * decodeOutput(result.transform, result.scale, y.data()), samples[i]->radiance);
+            // Judged as shaded: the prediction multiplied back by the reflectance, against the scattered
+            // radiance, weighted as the runtime weighs this network there.
+            e += double(entries[i].weight) *
+                 relativeSquaredError(modulation[i] * decodeOutput(result.transform, result.scale, y.data()), samples[i]->radiance);
+            w += double(entries[i].weight);
         }
-        return set.empty() ? 0.0 : e / double(set.size());
+        return w > 0.0 ? e / w : 0.0;
     };
 
     double bestOverall = std::numeric_limits<double>::infinity();

@@ -65,11 +65,29 @@ struct VoxelTrainResult {
 
 // The network's nine inputs for a sample in `voxel`.
 void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]);
+
+// A training sample as one network sees it: its weight there (the blend weight the runtime gives that
+// network at the sample's position, 1 without blending) and its position input relative to the voxel.
+struct VoxelSample {
+    const TrainingSample* sample = nullptr;
+    float weight = 1.0f;
+    glm::vec3 local{0.0f};
+};
+
+// The samples of every voxel's network: with band 0, each voxel's own samples; with a band, every sample
+// within reach of a voxel (its voxel plus the band's margin) with the weight and position input of
+// eval::supports() and keepOccupied(), where a voxel is occupied when it holds samples of its own. Indexed
+// by voxel; the order is the samples' order.
+std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples);
 // Radiance from the network's outputs.
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]);
 // relMSE of one prediction against its reference (mean over the three channels).
 double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& reference);
 
+// Fits the network of `voxel` to its samples, each weighing VoxelSample::weight in the loss, the scale
+// and the reported (weighted) errors.
+VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& samples, const TrainSettings& settings);
+// The same for samples inside the voxel, weight 1 each.
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
                             const TrainSettings& settings);
 

@@ -26,7 +26,7 @@ struct BakeOptions {
     uint32_t points = SampleSettings{}.points, paths = SampleSettings{}.paths, seed = 0, minSamples = 64;
     NeeMode nee = NeeMode::Power;
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
-    float learningRate = 0.01f;
+    float learningRate = 0.01f, blendBand = BakeSettings{}.blendBand;
     bool quiet = false, noMetadata = false, noDemodulate = false;
 };
 
@@ -77,7 +77,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                 if (cfg.contains(key) && cmd->count(flag) == 0) value = cfg.at(key).get<std::decay_t<decltype(value)>>();
             };
             static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
-                                          "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience"};
+                                          "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
+                                          "blend_band"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
@@ -100,6 +101,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("loss", "--loss", o.loss);
             take("encoding", "--encoding", o.encoding);
             take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
+            take("blend_band", "--blend-band", o.blendBand);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
             return kExitBadInput;
@@ -118,6 +120,9 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         return usage("--encoding " + o.encoding + ": expected fp16 or fp32");
     if (o.points < 1 || o.paths < 1 || o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f))
         return usage("--points, --paths, --epochs, --batch-size and --learning-rate must be positive, --max-depth >= 0");
+    if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
+        return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
+    s.blendBand = o.blendBand;
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -241,6 +246,9 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--loss", o->loss, "l2, relative-l2 (default) or log-l2");
     cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
+    cmd->add_option("--blend-band", o->blendBand,
+                    "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; "
+                    "0 = none (default 0.125)");
     cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
     cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");

@@ -44,6 +44,7 @@ struct LocateGrid {
     float lower[3], upper[3];
     float factor[3];  // dims / (upper - lower)
     uint32_t dims[3];
+    float band;  // blending band (eval::supports); 0: none
     const int32_t* dense;
 };
 
@@ -76,10 +77,10 @@ struct Deferred {
     size_t count;
 };
 
-// Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid and in one
-// occupied voxel is located and evaluated in vector registers, with its results and flags written; a
-// located block spanning several voxels goes to def.index/network/local (flags written); any other block
-// goes to def.blocks untouched.
+// Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
+// blending band and in one occupied voxel is located and evaluated in vector registers, with its results and
+// flags written; such a block spanning several voxels goes to def.index/network/local (flags written, one
+// entry of weight 1 per point); any other block goes to def.blocks untouched.
 using BlockDriver = void (*)(const BlockContext& ctx, size_t blocks, Deferred& def);
 
 #if defined(__x86_64__) || defined(_M_X64)

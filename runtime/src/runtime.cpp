@@ -21,6 +21,7 @@ using namespace nrad;
 // NradAssetInfo.contentFlags hands the header's flags through: the C API's names for the same bits.
 static_assert(NRAD_CONTENT_SCATTERED_RADIANCE == format::kFlagScatteredRadiance, "content flag bits");
 static_assert(NRAD_CONTENT_DEMODULATED == format::kFlagDemodulated, "content flag bits");
+static_assert(NRAD_CONTENT_BLENDED == format::kFlagBlended, "content flag bits");
 
 struct NradAsset_ {
     format::Asset asset;  // decoded; weights already in fp32
@@ -31,6 +32,7 @@ struct NradAsset_ {
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
     float gridFactor[3] = {1, 1, 1};  // eval::gridFactor of each axis
+    float blendBand = 0.0f;  // the grid's band with kFlagBlended, else 0 (one network per point)
     std::vector<float> scales;  // per network: the voxel's output scale
 };
 
@@ -131,6 +133,7 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
     }
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
     for (int k = 0; k < 3; ++k) a->gridFactor[k] = eval::gridFactor(a->asset.grid, k);
+    if (a->asset.header.flags & format::kFlagBlended) a->blendBand = a->asset.grid.blendBand;
     // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->asset.grid.voxelCount();
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
@@ -144,29 +147,25 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
 
 // ----- evaluation ------------------------------------------------------------------------------------------
 
-// Network of the voxel holding p (or -1 with a flag), and p's position inside that voxel (nrad/eval.h).
-int32_t locate(const NradAsset_& a, const float p[3], float local[3], uint8_t& flag) {
-    const eval::Location where = eval::locate(a.asset.grid, a.gridFactor, p);
-    if (where.voxel < 0) {
+// Network of an occupied voxel, or -1.
+int32_t networkOf(const NradAsset_& a, int64_t voxel) {
+    if (!a.denseLookup.empty()) return a.denseLookup[size_t(voxel)];
+    auto it = std::lower_bound(a.asset.voxels.begin(), a.asset.voxels.end(), uint32_t(voxel),
+                               [](const format::VoxelEntry& e, uint32_t v) { return e.index < v; });
+    return it != a.asset.voxels.end() && it->index == uint32_t(voxel) ? int32_t(it - a.asset.voxels.begin()) : -1;
+}
+
+// The networks that shade p, their weights and p's position in each voxel (nrad/eval.h supports() and
+// keepOccupied()); 0 with a flag when there is none.
+int locate(const NradAsset_& a, const float p[3], eval::Support s[eval::kMaxSupports], uint8_t& flag) {
+    int count = eval::supports(a.asset.grid, a.gridFactor, a.blendBand, p, s);
+    if (count == 0) {
         flag = NRAD_POINT_OUTSIDE_GRID;
-        return -1;
+        return 0;
     }
-    for (int k = 0; k < 3; ++k) local[k] = where.local[k];
-    const uint32_t voxel = uint32_t(where.voxel);
-    int32_t net = -1;
-    if (!a.denseLookup.empty()) {
-        net = a.denseLookup[voxel];
-    } else {
-        auto it = std::lower_bound(a.asset.voxels.begin(), a.asset.voxels.end(), voxel,
-                                   [](const format::VoxelEntry& e, uint32_t v) { return e.index < v; });
-        if (it != a.asset.voxels.end() && it->index == voxel) net = int32_t(it - a.asset.voxels.begin());
-    }
-    if (net < 0) {
-        flag = NRAD_POINT_EMPTY_VOXEL;
-        return -1;
-    }
-    flag = NRAD_POINT_OK;
-    return net;
+    count = eval::keepOccupied(s, count, [&](int64_t voxel) { return networkOf(a, voxel) >= 0; });
+    flag = count > 0 ? NRAD_POINT_OK : NRAD_POINT_EMPTY_VOXEL;
+    return count;
 }
 
 bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
@@ -187,32 +186,41 @@ rt::BlockDriver blockDriver(NradKernel k, int& width) {
     return nullptr;
 }
 
+// Evaluations left to the grouped pass: point, network, weight and the point's position in the network's
+// voxel. The SIMD block driver fills the first entries (at most one per point) through rt::Deferred;
+// locateOne appends up to eval::kMaxSupports per point.
 struct Scratch {
     std::vector<uint32_t> blocks, index, order, start;
     std::vector<int32_t> network;
-    std::vector<float> local;  // 3 per deferred point
+    std::vector<float> local;  // 3 per entry
+    std::vector<float> weight;
 };
 
-// Locates point i one at a time (the reference path): a located point joins the deferred list, any other
-// gets zero radiance and its flag.
-void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, rt::Deferred& def) {
+// Locates point i one at a time (the reference path): its supports join the deferred entries; a point
+// without any gets zero radiance and its flag.
+void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) {
     size_t at = i * v.stride;
     float p[3] = {v.p[0][at], v.p[1][at], v.p[2][at]};
     float n[3] = {v.n[0][at], v.n[1][at], v.n[2][at]};
     float d[3] = {v.d[0][at], v.d[1][at], v.d[2][at]};
     uint8_t flag = NRAD_POINT_OK;
-    int32_t net = -1;
+    eval::Support sup[eval::kMaxSupports];
+    int count = 0;
     if (!finite3(p) || !finite3(n) || !finite3(d))
         flag = NRAD_POINT_INVALID_INPUT;
     else
-        net = locate(a, p, &def.local[def.count * 3], flag);
+        count = locate(a, p, sup, flag);
     if (v.flags) v.flags[i] = flag;
-    if (net < 0) {
+    if (count == 0) {
         v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
         return;
     }
-    def.index[def.count] = uint32_t(i);
-    def.network[def.count++] = net;
+    for (int k = 0; k < count; ++k) {
+        s.index.push_back(uint32_t(i));
+        s.network.push_back(networkOf(a, sup[k].voxel));
+        s.weight.push_back(sup[k].weight);
+        s.local.insert(s.local.end(), sup[k].local, sup[k].local + 3);
+    }
 }
 
 NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v) {
@@ -259,6 +267,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
             ctx.grid.factor[k] = a.gridFactor[k];
             ctx.grid.dims[k] = g.dims[k];
         }
+        ctx.grid.band = a.blendBand;
         ctx.grid.dense = a.denseLookup.data();
         ctx.networks = first;
         ctx.paramsPerNetwork = a.paramsPerNetwork;
@@ -266,24 +275,36 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
         ctx.io = v;
         driver(ctx, blocks, def);
     }
-    // 2. The rest one point at a time: blocks with an invalid, outside or empty-voxel point, and the tail.
+    // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
+    //    tail.
+    s.index.resize(def.count);
+    s.network.resize(def.count);
+    s.local.resize(def.count * 3);
+    s.weight.assign(def.count, 1.0f);
     for (size_t b = 0; b < def.blockCount; ++b)
-        for (size_t i = size_t(def.blocks[b]) * size_t(width), end = i + size_t(width); i < end; ++i) locateOne(a, v, i, def);
-    for (size_t i = blocks * size_t(width); i < count; ++i) locateOne(a, v, i, def);
-    if (def.count == 0) return NRAD_OK;
+        for (size_t i = size_t(def.blocks[b]) * size_t(width), end = i + size_t(width); i < end; ++i) locateOne(a, v, i, s);
+    for (size_t i = blocks * size_t(width); i < count; ++i) locateOne(a, v, i, s);
+    const size_t entries = s.index.size();
+    if (entries == 0) return NRAD_OK;
 
-    // 3. Group the deferred points by network (counting sort), so every chunk runs one network.
+    // 3. Group the deferred entries by network (counting sort, stable), so every chunk runs one network and
+    //    each point's supports are summed in network order, which is their voxel order (eval.h).
     s.start.assign(nets + 1, 0);
-    for (size_t e = 0; e < def.count; ++e) ++s.start[size_t(def.network[e]) + 1];
+    for (size_t e = 0; e < entries; ++e) ++s.start[size_t(s.network[e]) + 1];
     for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
-    s.order.resize(def.count);
+    s.order.resize(entries);
     {
         std::vector<uint32_t>& fill = s.start;  // reuse as running offsets, restored below
-        for (size_t e = 0; e < def.count; ++e) s.order[fill[size_t(def.network[e])]++] = uint32_t(e);
+        for (size_t e = 0; e < entries; ++e) s.order[fill[size_t(s.network[e])]++] = uint32_t(e);
         for (size_t k = nets; k > 0; --k) fill[k] = fill[k - 1];
         fill[0] = 0;
     }
-    // 4. Run each group in chunks: gather SoA inputs, evaluate (output transform included), scatter.
+    // 4. Run each group in chunks: gather SoA inputs, evaluate (output transform included), accumulate the
+    //    weighted radiance into the zeroed outputs.
+    for (size_t e = 0; e < entries; ++e) {
+        const size_t at = size_t(s.index[e]) * v.stride;
+        v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
+    }
     alignas(64) float x[rt::kInputs * rt::kChunk];
     alignas(64) float y[rt::kOutputs * rt::kChunk];
     for (size_t k = 0; k < nets; ++k) {
@@ -293,9 +314,9 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
         for (uint32_t g = s.start[k]; g < s.start[k + 1]; g += rt::kChunk) {
             uint32_t n = std::min<uint32_t>(rt::kChunk, s.start[k + 1] - g);
             for (uint32_t j = 0; j < n; ++j) {
-                size_t e = s.order[g + j], at = size_t(def.index[e]) * v.stride;
+                size_t e = s.order[g + j], at = size_t(s.index[e]) * v.stride;
                 for (int c = 0; c < 3; ++c) {
-                    x[(0 + c) * rt::kChunk + j] = def.local[e * 3 + size_t(c)];
+                    x[(0 + c) * rt::kChunk + j] = s.local[e * 3 + size_t(c)];
                     x[(3 + c) * rt::kChunk + j] = v.n[c][at];
                     x[(6 + c) * rt::kChunk + j] = v.d[c][at];
                 }
@@ -303,8 +324,9 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
             for (int r = 0; r < rt::kInputs; ++r) std::fill(x + r * rt::kChunk + n, x + (r + 1) * rt::kChunk, 0.0f);
             kernel(net, x, y);
             for (uint32_t j = 0; j < n; ++j) {
-                size_t at = size_t(def.index[s.order[g + j]]) * v.stride;
-                for (int c = 0; c < 3; ++c) v.out[c][at] = y[c * rt::kChunk + int(j)];
+                const size_t e = s.order[g + j], at = size_t(s.index[e]) * v.stride;
+                const float w = s.weight[e];
+                for (int c = 0; c < 3; ++c) v.out[c][at] += w * y[c * rt::kChunk + int(j)];
             }
         }
     }
@@ -395,6 +417,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.weightEncoding = uint32_t(t.weightEncoding);
         r.outputTransform = uint32_t(t.outputTransform);
         r.contentFlags = a->asset.header.flags & format::kKnownFlags;  // NRAD_CONTENT_* are the header's flags
+        r.blendBand = a->blendBand;
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +

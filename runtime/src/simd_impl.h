@@ -167,14 +167,25 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             def.blocks[def.blockCount++] = uint32_t(b);
             continue;
         }
-        // The voxel and the position inside it, exactly as locate() in runtime.cpp computes them.
+        // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
+        // blending band (eval::bandSide): a block with a point in a band takes the general path.
         F local[3];
         I c[3];
+        unsigned inBand = 0;
         for (int k = 0; k < 3; ++k) {
             F t = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
             c[k] = V::mini(V::cvtTrunc(t), V::seti(int(g.dims[k]) - 1));  // t >= 0 here
-            F l = V::sub(V::mul(two, V::sub(t, V::cvtFloat(c[k]))), one);
+            F cf = V::cvtFloat(c[k]), f = V::sub(t, cf);
+            if (g.band > 0.0f) {  // c > 0 && f < band, or c + 1 < dims && f > 1 - band (f is never NaN here)
+                inBand |= V::geMask(cf, one) & ~V::geMask(f, V::set1(g.band));
+                inBand |= V::leMask(cf, V::set1(float(g.dims[k]) - 2.0f)) & ~V::leMask(f, V::set1(1.0f - g.band));
+            }
+            F l = V::sub(V::mul(two, f), one);
             local[k] = V::min(V::max(l, minusOne), one);
+        }
+        if (inBand & all) {
+            def.blocks[def.blockCount++] = uint32_t(b);
+            continue;
         }
         I voxel = V::addi(c[0], V::mullo(V::seti(int(g.dims[0])), V::addi(c[1], V::mullo(V::seti(int(g.dims[1])), c[2]))));
         const int32_t voxel0 = V::firstLane(voxel);

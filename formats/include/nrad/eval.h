@@ -64,6 +64,102 @@ inline Location locate(const format::Grid& g, const float p[3]) {
     return locate(g, factor, p);
 }
 
+// ----- blended supports: how a point finds its networks and their weights ---------------------------------
+
+// With kFlagBlended, a point within `band` voxels of an interior face is shaded by the networks on both
+// sides, weighted by a partition of unity that depends only on the point's grid coordinate t: the voxel above
+// the face at integer k weighs s((t - k + band) / (2 band)), the one below 1 minus that, with s the smoothstep
+// 3u^2 - 2u^3 (u clamped to [0, 1]). Both sides compute the same t - k, so the shaded result is continuous
+// across every face; s is C1, so it has no kink either. Faces on the grid's boundary have no neighbour. In 3D
+// the weights are the products of the three axes' (up to 2 x 2 x 2 = 8 networks at a corner, 1 in the
+// interior), a support's position input is p relative to its own voxel (beyond [-1, 1] by up to 2 band;
+// networks train on their voxel plus that margin), and supports whose voxel has no network are dropped
+// and the rest renormalised (keepOccupied).
+constexpr int kMaxSupports = 8;
+
+struct Support {
+    int64_t voxel = -1;  // linear index
+    float weight = 0.0f;
+    float local[3] = {0, 0, 0};  // position input relative to this voxel
+};
+
+// Weight of the voxel above a face for a point at grid coordinate distance x = t - k from it.
+inline float aboveFaceWeight(float x, float band) {
+    float u = (x + band) / (2.0f * band);
+    u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
+    return u * u * (3.0f - 2.0f * u);
+}
+
+// Whether a point at voxel coordinate c (fraction f = t - c) of an axis with dim voxels is in the band of
+// its lower (-1) or upper (+1) interior face, or in neither (0). The SIMD kernels test exactly this for their
+// single-network fast path.
+inline int bandSide(int c, float f, uint32_t dim, float band) {
+    if (c > 0 && f < band) return -1;
+    if (c + 1 < int(dim) && f > 1.0f - band) return 1;
+    return 0;
+}
+
+// Every network support of p, in increasing voxel order (z, then y, then x, lower first), with weights that
+// sum to 1 (in float, before keepOccupied). Returns their count: 0 outside the grid (or for a non-finite p),
+// 1 with weight 1 and the position clamped to [-1, 1] when band is 0 or p lies in no band (exactly locate()).
+inline int supports(const format::Grid& g, const float factor[3], float band, const float p[3], Support out[kMaxSupports]) {
+    int coord[3][2];
+    float weight[3][2];
+    int n[3];
+    for (int k = 0; k < 3; ++k) {
+        if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) return 0;
+        const float t = gridCoordinate(p[k], g.lower[k], factor[k]);
+        const int c = voxelCoordinate(t, g.dims[k]);
+        const int side = band > 0.0f ? bandSide(c, t - float(c), g.dims[k], band) : 0;
+        if (side == 0) {
+            n[k] = 1;
+            coord[k][0] = c;
+            weight[k][0] = 1.0f;
+            continue;
+        }
+        const int below = side < 0 ? c - 1 : c;  // the face lies between voxels below and below + 1
+        const float above = aboveFaceWeight(t - float(below + 1), band);
+        n[k] = 2;
+        coord[k][0] = below;
+        coord[k][1] = below + 1;
+        weight[k][0] = 1.0f - above;
+        weight[k][1] = above;
+    }
+    int count = 0;
+    for (int z = 0; z < n[2]; ++z)
+        for (int y = 0; y < n[1]; ++y)
+            for (int x = 0; x < n[0]; ++x) {
+                Support& s = out[count++];
+                const int c[3] = {coord[0][x], coord[1][y], coord[2][z]};
+                s.voxel = int64_t(c[0]) + int64_t(g.dims[0]) * (int64_t(c[1]) + int64_t(g.dims[1]) * int64_t(c[2]));
+                s.weight = weight[0][x] * weight[1][y] * weight[2][z];
+                for (int k = 0; k < 3; ++k) {
+                    const float reach = n[k] == 1 ? 1.0f : 1.0f + 2.0f * band;  // [-1, 1] on an axis without a band
+                    const float q = localCoordinate(p[k], g.lower[k], factor[k], c[k]);
+                    s.local[k] = q < -reach ? -reach : (q > reach ? reach : q);
+                }
+            }
+    return count;
+}
+
+// Drops the supports whose voxel has no network (occupied(voxel) false) or whose weight rounded to 0, and
+// divides the others' weights by their sum (summed in order; done even when none was dropped, so every caller
+// rounds alike). Returns how many remain (0: the point is in an empty voxel and every neighbour it blends with is empty too).
+template <class Occupied>
+inline int keepOccupied(Support* s, int count, Occupied&& occupied) {
+    int kept = 0;
+    float sum = 0.0f;
+    for (int i = 0; i < count; ++i)
+        if (s[i].weight > 0.0f && occupied(s[i].voxel)) {
+            s[kept++] = s[i];
+            sum += s[kept - 1].weight;
+        }
+    for (int i = 0; i < kept; ++i) s[i].weight = s[i].weight / sum;
+    return kept;
+}
+
+// The blended radiance is the sum over the kept supports, in their order, of weight x decoded radiance.
+
 // ----- inputs ------------------------------------------------------------------------------------------------
 
 // x = (position in the voxel, shading normal, direction towards the viewer), normal and direction unit

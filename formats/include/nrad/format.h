@@ -19,12 +19,16 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 0;  // a reader accepts newer minors (new optional sections only)
+constexpr uint16_t kVersionMinor = 1;  // a reader accepts newer minors (new optional sections only); 2.1: blending
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
 constexpr uint32_t kFlagDemodulated = 2u;  // divided by the surface's reflectance, multiplied back when shading
-constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated;
+// Neighbouring networks are blended in a band around the voxel faces (Grid::blendBand, nrad/eval.h supports()).
+// A 2.0 reader rejects the flag rather than draw the seams.
+constexpr uint32_t kFlagBlended = 4u;
+constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated | kFlagBlended;
+constexpr float kMaxBlendBand = 0.5f;  // the band's half-width, in voxels: bands of opposite faces never overlap
 
 constexpr uint32_t kHeaderSize = 64;
 constexpr uint32_t kSectionRecordSize = 32;
@@ -75,10 +79,13 @@ struct SectionRecord {  // 32 bytes each, sectionCount of them at sectionTableOf
     uint32_t crc = 0;
 };
 
-struct Grid {  // GRID, 40 bytes: f32 lower[3], f32 upper[3], u32 dims[3], u32 reserved
+struct Grid {  // GRID, 40 bytes: f32 lower[3], f32 upper[3], u32 dims[3], f32 blendBand
     float lower[3] = {0, 0, 0};
     float upper[3] = {1, 1, 1};
     uint32_t dims[3] = {1, 1, 1};
+    // Half-width of the blending band around every interior face, in voxels: in (0, kMaxBlendBand] when the
+    // header has kFlagBlended, else 0 (the bytes were reserved, 0, in format 2.0).
+    float blendBand = 0.0f;
     uint64_t voxelCount() const { return uint64_t(dims[0]) * dims[1] * dims[2]; }
 };
 
@@ -190,7 +197,7 @@ enum class DecodeStatus {
     BadSectionTable,  // a section outside the file, overlapping, misaligned, duplicated, or unknown required
     SectionCrcMismatch,
     MissingSection,  // GRID, TOPO, VOXL or WGHT absent
-    BadGrid,  // non-finite or empty bounds, zero or huge dimensions
+    BadGrid,  // non-finite or empty bounds, zero or huge dimensions, a blend band out of range
     BadTopology,  // unsupported sizes, activation, transform or encoding
     BadVoxels,  // count, ordering, range or scale of the voxel table
     BadWeights,  // wrong size, or a weight that is not finite
@@ -324,7 +331,9 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         // The voxel rule's factor dims / (upper - lower) must be finite too (a subnormal extent is not).
         if (!std::isfinite(float(g.dims[k]) / (g.upper[k] - g.lower[k]))) return DecodeStatus::BadGrid;
     }
-    if (rd32(grid + 36) != 0) return DecodeStatus::BadGrid;
+    g.blendBand = rdf32(grid + 36);
+    if ((h.flags & kFlagBlended) ? !(g.blendBand > 0.0f && g.blendBand <= kMaxBlendBand) : rd32(grid + 36) != 0)
+        return DecodeStatus::BadGrid;
 
     Topology t;
     if (topoSize < 24) return DecodeStatus::BadTopology;
@@ -402,7 +411,7 @@ inline std::vector<uint8_t> encode(const Asset& a) {
         for (int k = 0; k < 3; ++k) wrf32(s, a.grid.lower[k]);
         for (int k = 0; k < 3; ++k) wrf32(s, a.grid.upper[k]);
         for (int k = 0; k < 3; ++k) wr32(s, a.grid.dims[k]);
-        wr32(s, 0);
+        wrf32(s, (a.header.flags & kFlagBlended) ? a.grid.blendBand : 0.0f);
         sections.push_back(std::move(s));
         types.push_back(kSectionGrid);
     }
@@ -449,8 +458,10 @@ inline std::vector<uint8_t> encode(const Asset& a) {
     std::memcpy(out.data(), kMagic.data(), 8);
     out[8] = uint8_t(kVersionMajor);
     out[9] = uint8_t(kVersionMajor >> 8);
-    out[10] = uint8_t(kVersionMinor);
-    out[11] = uint8_t(kVersionMinor >> 8);
+    // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
+    const uint16_t minor = (a.header.flags & kFlagBlended) ? 1 : 0;
+    out[10] = uint8_t(minor);
+    out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);
     put32(out, 16, kHeaderSize);
     put32(out, 20, uint32_t(sections.size()));

@@ -27,7 +27,7 @@ extern "C" {
 #endif
 
 #define NRAD_VERSION_MAJOR 0
-#define NRAD_VERSION_MINOR 2
+#define NRAD_VERSION_MINOR 3
 #define NRAD_VERSION_PATCH 0
 
 typedef struct NradAsset_* NradAsset;
@@ -82,6 +82,7 @@ typedef struct NradAssetInfo {
     uint32_t weightEncoding;   /* 0 = fp32, 1 = fp16 (as stored in the file) */
     uint32_t outputTransform;  /* 0 = scale max(0, y), 1 = scale (exp(y) - 1) */
     uint32_t contentFlags;     /* NRAD_CONTENT_*: what the networks store */
+    float blendBand;           /* with NRAD_CONTENT_BLENDED: half-width of the blending band, in voxels; else 0 */
     uint64_t fileBytes;        /* size of the asset data */
     uint64_t memoryBytes;      /* memory held by the handle */
 } NradAssetInfo;
@@ -91,6 +92,9 @@ typedef struct NradAssetInfo {
 /* contentFlags: the radiance returned is divided by the surface's reflectance (multiply it back when shading:
  * nradShadeBatch does both). */
 #define NRAD_CONTENT_DEMODULATED 2u
+/* contentFlags: points within blendBand voxels of an interior voxel face are shaded by the networks on both
+ * sides, blended continuously (docs/format.md, "Blended supports"); up to 8 evaluations per point. */
+#define NRAD_CONTENT_BLENDED 4u
 
 NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
 /* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels. */
