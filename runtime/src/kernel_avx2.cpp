@@ -21,6 +21,13 @@ struct Avx2 {
     static F add(F a, F b) { return _mm256_add_ps(a, b); }
     static F sub(F a, F b) { return _mm256_sub_ps(a, b); }
     static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
+    static F div(F a, F b) { return _mm256_div_ps(a, b); }
+    // Lanes whose bit is set in mask from a, the others from b.
+    static F select(unsigned mask, F a, F b) {
+        const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        const __m256i on = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(mask)), bit), bit);
+        return _mm256_blendv_ps(b, a, _mm256_castsi256_ps(on));
+    }
     static F fmadd(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
     static F fnmadd(F a, F b, F c) { return _mm256_fnmadd_ps(a, b, c); }
     static F min(F a, F b) { return _mm256_min_ps(a, b); }

@@ -24,6 +24,9 @@ struct Avx512 {
     static F add(F a, F b) { return _mm512_add_ps(a, b); }
     static F sub(F a, F b) { return _mm512_sub_ps(a, b); }
     static F mul(F a, F b) { return _mm512_mul_ps(a, b); }
+    static F div(F a, F b) { return _mm512_div_ps(a, b); }
+    // Lanes whose bit is set in mask from a, the others from b.
+    static F select(unsigned mask, F a, F b) { return _mm512_mask_blend_ps(__mmask16(mask), b, a); }
     static F fmadd(F a, F b, F c) { return _mm512_fmadd_ps(a, b, c); }
     static F fnmadd(F a, F b, F c) { return _mm512_fnmadd_ps(a, b, c); }
     static F min(F a, F b) { return _mm512_min_ps(a, b); }

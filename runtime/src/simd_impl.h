@@ -5,7 +5,8 @@
 // No standard-library templates are used here for the same reason.
 //
 // V provides: F (vector of W floats), I (vector of W int32), W, and
-//   load/store (unaligned), set1, seti, zero, add, sub, mul, fmadd(a, b, c) = a b + c, fnmadd = c - a b,
+//   load/store (unaligned), set1, seti, zero, add, sub, mul, div, fmadd(a, b, c) = a b + c, fnmadd = c - a b,
+//   select(mask, a, b) (lanes of mask from a, the others from b),
 //   min, max (both return the second operand when either is NaN, like the x86 instructions),
 //   roundNearest, timesPow2(q, n) = q 2^n for integral n in [-126, 127], cvtTrunc (F -> I), cvtFloat
 //   (I -> F), addi, mullo, mini, storei, firstLane (lane 0 of an I), geMask/leMask (ordered compares)
@@ -143,6 +144,84 @@ inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) 
     }
 }
 
+// A block of W points in one occupied voxel `voxel0`, some of them in a blending band: eval::supports() and
+// keepOccupied() for every lane at once, then every network some lane needs, over the whole vector, each
+// lane accumulating weight x radiance in voxel order (the order, rounding and arithmetic of the grouped
+// pass in runtime.cpp, so a point gets the same bits whichever path it takes). Returns false, writing
+// nothing, when some lane is left without an occupied support (the general path flags it).
+template <class V, int Stride>
+bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3],
+                 int32_t voxel0, size_t first) {
+    using F = typename V::F;
+    constexpr unsigned all = V::W == 32 ? ~0u : (1u << V::W) - 1u;
+    const LocateGrid& g = ctx.grid;
+    const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f), band = V::set1(g.band);
+    // Per axis: t, the voxel coordinate as a float, the weights of offsets -1, 0, +1 and the clamp reach.
+    F t[3], cf[3], w[3][3], reach[3];
+    bool need[3][3];
+    for (int k = 0; k < 3; ++k) {
+        t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
+        cf[k] = V::cvtFloat(V::mini(V::cvtTrunc(t[k]), V::seti(int(g.dims[k]) - 1)));
+        const F f = V::sub(t[k], cf[k]);
+        const unsigned lo = V::geMask(cf[k], one) & ~V::geMask(f, band) & all;  // eval::bandSide == -1
+        const unsigned hi = V::leMask(cf[k], V::set1(float(g.dims[k]) - 2.0f)) & ~V::leMask(f, V::set1(1.0f - g.band)) & ~lo & all;
+        const F x = V::select(hi, V::sub(t[k], V::add(cf[k], one)), f);  // t - the face's coordinate
+        F u = V::div(V::add(x, band), V::set1(2.0f * g.band));  // eval::aboveFaceWeight
+        u = V::min(V::max(u, zero), one);
+        const F above = V::mul(V::mul(u, u), V::sub(V::set1(3.0f), V::mul(two, u)));
+        const F below = V::sub(one, above);
+        w[k][0] = V::select(lo, below, zero);
+        w[k][1] = V::select(lo, above, V::select(hi, below, one));
+        w[k][2] = V::select(hi, above, zero);
+        reach[k] = V::select(lo | hi, V::set1(1.0f + 2.0f * g.band), one);
+        need[k][0] = lo != 0;
+        need[k][1] = true;
+        need[k][2] = hi != 0;
+    }
+    // The occupied supports in voxel order (z, y, x, lower first) and the per-lane sum of their weights.
+    struct Term {
+        int32_t network;
+        int o[3];
+        F raw;
+    };
+    Term terms[27];
+    int count = 0;
+    F sum = zero;
+    for (int z = 0; z < 3; ++z)
+        for (int y = 0; y < 3; ++y)
+            for (int x = 0; x < 3; ++x) {
+                if (!need[0][x] || !need[1][y] || !need[2][z]) continue;
+                const F raw = V::mul(V::mul(w[0][x], w[1][y]), w[2][z]);
+                if ((~V::leMask(raw, zero) & all) == 0) continue;  // no lane has weight > 0 here
+                const int32_t voxel = voxel0 + (x - 1) + int32_t(g.dims[0]) * ((y - 1) + int32_t(g.dims[1]) * (z - 1));
+                const int32_t network = g.dense[voxel];
+                if (network < 0) continue;
+                terms[count++] = {network, {x - 1, y - 1, z - 1}, raw};
+                sum = V::add(sum, raw);
+            }
+    if ((~V::leMask(sum, zero) & all) != all) return false;
+    F acc[3] = {zero, zero, zero};
+    for (int i = 0; i < count; ++i) {
+        const Term& term = terms[i];
+        F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
+        for (int k = 0; k < 3; ++k) {
+            const F q = V::sub(V::mul(two, V::sub(t[k], V::add(cf[k], V::set1(float(term.o[k]))))), one);
+            in[k] = V::min(V::max(q, V::sub(zero, reach[k])), reach[k]);
+        }
+        NetworkView net = ctx.networks;
+        net.params += size_t(term.network) * ctx.paramsPerNetwork;
+        net.scale = ctx.scales[term.network];
+        F out[kOutputs];
+        evalNetwork<V>(net, in, out);
+        toRadiance<V>(net, out);
+        const unsigned kept = ~V::leMask(term.raw, zero) & all;
+        const F weight = V::div(term.raw, sum);
+        for (int c = 0; c < 3; ++c) acc[c] = V::select(kept, V::add(acc[c], V::mul(weight, out[c])), acc[c]);
+    }
+    store3<V, Stride>(ctx.io.out, first, acc);
+    return true;
+}
+
 // BlockDriver (kernels.h), for one layout.
 template <class V, int Stride>
 void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
@@ -183,13 +262,19 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             F l = V::sub(V::mul(two, f), one);
             local[k] = V::min(V::max(l, minusOne), one);
         }
-        if (inBand & all) {
-            def.blocks[def.blockCount++] = uint32_t(b);
-            continue;
-        }
         I voxel = V::addi(c[0], V::mullo(V::seti(int(g.dims[0])), V::addi(c[1], V::mullo(V::seti(int(g.dims[1])), c[2]))));
         const int32_t voxel0 = V::firstLane(voxel);
-        if (V::equalMask(voxel, V::seti(voxel0)) == all) {
+        const bool oneVoxel = V::equalMask(voxel, V::seti(voxel0)) == all;
+        if (inBand & all) {  // blended: in registers when the block shares one occupied voxel
+            if (!oneVoxel || g.dense[voxel0] < 0 || !evalBlended<V, Stride>(ctx, p, n, d, voxel0, first)) {
+                def.blocks[def.blockCount++] = uint32_t(b);
+                continue;
+            }
+            if (ctx.io.flags)
+                for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+            continue;
+        }
+        if (oneVoxel) {
             int32_t network = g.dense[voxel0];
             if (network < 0) {
                 def.blocks[def.blockCount++] = uint32_t(b);

@@ -220,5 +220,114 @@ TEST(Format, DecoderRejectsInvalidContent) {
     EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTopology);
 }
 
+
+// Format 2.1: kFlagBlended and the band in GRID's last four bytes; written as 2.1 only when blended, so
+// 2.0 readers still load everything else (and reject the flag rather than draw seams).
+TEST(Format, BlendBandRoundTripsAndIsValidated) {
+    Asset a = tinyAsset();
+    std::vector<uint8_t> b = encode(a);
+    EXPECT_EQ(b[10], 0);  // minor version 0 without blending
+    Asset out;
+    ASSERT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    EXPECT_EQ(out.grid.blendBand, 0.0f);
+    a.header.flags |= kFlagBlended;
+    a.grid.blendBand = 0.125f;
+    b = encode(a);
+    EXPECT_EQ(b[10], 1);
+    ASSERT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    EXPECT_EQ(out.grid.blendBand, 0.125f);
+    EXPECT_EQ(out.header.flags, kFlagScatteredRadiance | kFlagBlended);
+    for (float bad : {0.0f, -0.1f, 0.5001f, 1.0f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+        a.grid.blendBand = bad;
+        b = encode(a);
+        EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadGrid) << bad;
+    }
+    a.grid.blendBand = 0.5f;  // the largest: the bands of a voxel's two faces meet in its middle
+    b = encode(a);
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    // Without the flag the four bytes must stay 0 (a writer's band without its flag is an error, not ignored).
+    Asset plain = tinyAsset();
+    b = encode(plain);
+    const size_t grid = size_t(b[64 + 8]) | size_t(b[64 + 9]) << 8;  // the first section record (GRID): its offset
+    b[grid + 36] = 0x3E;
+    const uint8_t* rec = b.data() + 64;
+    const uint32_t crc = crc32(b.data() + grid, 40);
+    for (int i = 0; i < 4; ++i) b[size_t(64 + 24 + i)] = uint8_t(crc >> (8 * i));
+    const uint32_t tableCrc = crc32(rec, size_t(b[20]) * kSectionRecordSize);
+    for (int i = 0; i < 4; ++i) b[size_t(40 + i)] = uint8_t(tableCrc >> (8 * i));
+    const uint32_t headerCrc = crc32(b.data(), 60);
+    for (int i = 0; i < 4; ++i) b[size_t(60 + i)] = uint8_t(headerCrc >> (8 * i));
+    EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadGrid);
+}
+
+// nrad/eval.h supports(): one network inside a voxel, 2 / 4 / 8 within the band of a face / edge / corner,
+// none across the grid's boundary, weights summing to 1 in increasing voxel order, positions relative to
+// each voxel, and a partition of unity that is continuous (and smooth) across the face.
+TEST(Format, BlendedSupportsArePartitionsOfUnity) {
+    Grid g;
+    for (int k = 0; k < 3; ++k) {
+        g.lower[k] = -1.0f;
+        g.upper[k] = 2.0f;
+        g.dims[k] = 3;
+    }
+    const float factor[3] = {eval::gridFactor(g, 0), eval::gridFactor(g, 1), eval::gridFactor(g, 2)};
+    const float band = 0.25f;
+    eval::Support s[eval::kMaxSupports];
+    auto count = [&](float x, float y, float z) {
+        const float p[3] = {x, y, z};
+        return eval::supports(g, factor, band, p, s);
+    };
+    EXPECT_EQ(count(0.5f, 0.5f, 0.5f), 1);
+    EXPECT_EQ(s[0].voxel, 13);
+    EXPECT_EQ(s[0].weight, 1.0f);
+    EXPECT_EQ(count(0.05f, 0.5f, 0.5f), 2);  // x near the face between voxels 0 and 1 of the middle row
+    EXPECT_EQ(s[0].voxel, 12);
+    EXPECT_EQ(s[1].voxel, 13);
+    EXPECT_NEAR(s[0].local[0], 1.1f, 1e-5f);  // beyond the lower voxel's +1 face
+    EXPECT_NEAR(s[1].local[0], -0.9f, 1e-5f);
+    EXPECT_EQ(count(0.05f, 0.95f, 0.5f), 4);
+    EXPECT_EQ(count(0.05f, 0.95f, 1.1f), 8);
+    for (int i = 1; i < 8; ++i) EXPECT_LT(s[i - 1].voxel, s[i].voxel);
+    float sum = 0.0f;
+    for (int i = 0; i < 8; ++i) sum += s[i].weight;
+    EXPECT_NEAR(sum, 1.0f, 1e-6f);
+    EXPECT_EQ(count(-0.95f, -0.95f, 1.95f), 1);  // bands only at interior faces
+    EXPECT_EQ(count(-1.5f, 0.0f, 0.0f), 0);
+    EXPECT_EQ(count(0.5f, std::numeric_limits<float>::quiet_NaN(), 0.5f), 0);
+    // Band 0: exactly locate().
+    const float q[3] = {0.05f, 0.95f, 1.1f};
+    ASSERT_EQ(eval::supports(g, factor, 0.0f, q, s), 1);
+    const eval::Location at = eval::locate(g, q);
+    EXPECT_EQ(s[0].voxel, at.voxel);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(s[0].local[k], at.local[k]);
+    // Weight of the upper voxel along x across the face at x = 0: 0 to 1 over the band, 1/2 on the face,
+    // continuous with bounded slope (smoothstep: at most 1.5 / (2 band) per voxel), flat at both ends.
+    auto upper = [&](float x) {
+        const int n = count(x, 0.5f, 0.5f);
+        for (int i = 0; i < n; ++i)
+            if (s[i].voxel == 13) return s[i].weight;
+        return 0.0f;
+    };
+    EXPECT_EQ(upper(0.0f), 0.5f);
+    EXPECT_EQ(upper(-0.3f), 0.0f);
+    EXPECT_EQ(upper(0.3f), 1.0f);
+    float previous = upper(-0.26f);
+    for (int i = 1; i <= 520; ++i) {
+        const float x = -0.26f + 0.001f * float(i);
+        const float w = upper(x);
+        EXPECT_GE(w, previous - 1e-7f) << x;
+        EXPECT_LE(std::abs(w - previous), 0.001f * 1.5f / (2.0f * band) * 1.01f + 1e-6f) << x;
+        previous = w;
+    }
+    EXPECT_LT(upper(-0.25f + 0.002f), 1e-4f);
+    EXPECT_GT(upper(0.25f - 0.002f), 1.0f - 1e-4f);
+    // keepOccupied: an empty neighbour's weight goes to the rest.
+    ASSERT_EQ(count(0.05f, 0.95f, 0.5f), 4);
+    const int kept = eval::keepOccupied(s, 4, [](int64_t v) { return v != 12; });
+    ASSERT_EQ(kept, 3);
+    EXPECT_NEAR(s[0].weight + s[1].weight + s[2].weight, 1.0f, 1e-6f);
+    EXPECT_EQ(eval::keepOccupied(s, 3, [](int64_t) { return false; }), 0);
+}
+
 }  // namespace
 }  // namespace nrad::format
