@@ -18,7 +18,7 @@ struct BakeSettings {
     glm::uvec3 grid{3, 3, 3};
     // Half-width, in voxels, of the band around interior voxel faces where neighbouring networks are blended
     // (nrad/eval.h supports()); each network trains on its voxel plus this margin. 0: no blending, seams.
-    float blendBand = 0.125f;
+    float blendBand = 0.0625f;
     SampleSettings samples;
     TrainSettings train;
     format::WeightEncoding encoding = format::WeightEncoding::Float16;

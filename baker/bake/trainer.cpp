@@ -32,12 +32,6 @@ bool parseLoss(const std::string& name, LossKind& loss) {
     return false;
 }
 
-void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]) {
-    glm::vec3 q = grid.positionInVoxel(p, voxel);
-    const float local[3] = {q.x, q.y, q.z}, normal[3] = {n.x, n.y, n.z}, direction[3] = {wo.x, wo.y, wo.z};
-    eval::encodeInputs(local, normal, direction, in);
-}
-
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]) {
     float rgb[3];
     eval::decodeOutputs(transform, scale, y, rgb);

@@ -63,8 +63,6 @@ struct VoxelTrainResult {
     double seconds = 0.0;
 };
 
-// The network's nine inputs for a sample in `voxel`.
-void encodeInput(const VoxelGrid& grid, uint32_t voxel, const glm::vec3& p, const glm::vec3& n, const glm::vec3& wo, float in[9]);
 
 // A training sample as one network sees it: its weight there (the blend weight the runtime gives that
 // network at the sample's position, 1 without blending) and its position input relative to the voxel.

@@ -248,7 +248,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
     cmd->add_option("--blend-band", o->blendBand,
                     "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; "
-                    "0 = none (default 0.125)");
+                    "0 = none (default 0.0625)");
     cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
     cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");

@@ -42,6 +42,10 @@ int runInfo(const std::string& path) {
                 (a.header.flags & format::kFlagScatteredRadiance) ? "scattered radiance L - Le (shading adds the surface's own emission)"
                                                                   : "outgoing radiance L (emission included)",
                 (a.header.flags & format::kFlagDemodulated) ? ", divided by the surface's reflectance (shading multiplies it back)" : "");
+    if (a.header.flags & format::kFlagBlended)
+        std::printf("blending: neighbouring networks blended within %g voxels of every interior face (no seams)\n", a.grid.blendBand);
+    else
+        std::printf("blending: none (one network per point)\n");
     std::printf("metadata: %s\n", a.metadata.empty() ? "(none)" : a.metadata.c_str());
     return kExitOk;
 }

@@ -236,7 +236,9 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     j["path_tracer_convergence"] = curve;
     j["neural"] = methodJson(r.neural);
     j["seams"] = {{"points", r.seams.points}, {"relmse_across_faces", num(r.seams.relMse)},
-                  {"mean_relative_jump", num(r.seams.meanRelativeJump)}};
+                  {"mean_relative_jump", num(r.seams.meanRelativeJump)},
+                  {"evaluations_per_point", num(r.seams.evaluationsPerPoint)},
+                  {"blended_share", num(r.seams.blendedShare)}};
     if (r.baseline) {
         j["baseline"] = methodJson(*r.baseline);
         j["baseline"]["probes"] = {r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z};
@@ -387,7 +389,9 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     if (r.baseline) whereRow("SH probes", *r.baseline);
     h << "</table>\n<p>Seams: at " << r.seams.points << " surface points on faces shared by two occupied voxels, the asset's "
       << "radiance on either side differs by a relMSE of " << fmt("%.3g", r.seams.relMse) << " (mean relative jump "
-      << fmt("%.3g", r.seams.meanRelativeJump) << ").</p>\n";
+      << fmt("%.3g", r.seams.meanRelativeJump) << "). Networks evaluated per visible surface point: "
+      << fmt("%.3g", r.seams.evaluationsPerPoint) << " (" << fmt("%.1f", 100.0 * r.seams.blendedShare)
+      << "% of the points in a blending band).</p>\n";
     h << "<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">";
     if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
     h << "</div>\n";

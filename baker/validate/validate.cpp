@@ -132,6 +132,32 @@ SeamFigure seamFigure(const FirstHits& h, const format::Grid& grid, NradAsset as
         }
     }
     SeamFigure f;
+    {
+        NradAssetInfo info;
+        nradGetAssetInfo(asset, &info);
+        std::vector<bool> occupied(grid.voxelCount(), false);
+        for (uint32_t i = 0; i < info.occupiedVoxels; ++i) {
+            uint32_t v = 0;
+            if (nradGetOccupiedVoxel(asset, i, &v) == NRAD_OK && v < occupied.size()) occupied[v] = true;
+        }
+        const float factor[3] = {eval::gridFactor(grid, 0), eval::gridFactor(grid, 1), eval::gridFactor(grid, 2)};
+        size_t points = 0, evaluations = 0, blended = 0;
+        for (size_t i = 0; i < h.voxel.size(); ++i) {
+            if (h.voxel[i] < 0) continue;
+            const float q[3] = {h.points[i].x, h.points[i].y, h.points[i].z};
+            eval::Support s[eval::kMaxSupports];
+            int kept = eval::supports(grid, factor, info.blendBand, q, s);
+            kept = eval::keepOccupied(s, kept, [&](int64_t v) { return occupied[size_t(v)]; });
+            if (kept == 0) continue;
+            ++points;
+            evaluations += size_t(kept);
+            blended += kept > 1 ? 1 : 0;
+        }
+        if (points > 0) {
+            f.evaluationsPerPoint = double(evaluations) / double(points);
+            f.blendedShare = double(blended) / double(points);
+        }
+    }
     const size_t count = p.size() / 3;
     if (count == 0) return f;
     std::vector<float> rgb(3 * count);
@@ -288,9 +314,12 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     r.regionOfPixel = pixelRegions(hits);
     r.seams = seamFigure(hits, assetGrid, asset);
     {
-        char line[200];
-        std::snprintf(line, sizeof line, "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g",
-                      r.seams.points, r.seams.relMse, r.seams.meanRelativeJump);
+        char line[320];
+        std::snprintf(line, sizeof line,
+                      "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g; "
+                      "%.3g network evaluations per visible point (%.1f%% blended)",
+                      r.seams.points, r.seams.relMse, r.seams.meanRelativeJump, r.seams.evaluationsPerPoint,
+                      100.0 * r.seams.blendedShare);
         say(line);
     }
     RenderSettings fh = rs;

@@ -74,6 +74,10 @@ struct SeamFigure {
     // against the other, comparable to the networks' held-out relMSE.
     double relMse = 0.0;
     double meanRelativeJump = 0.0;  // mean of |La - Lb| / ((La + Lb) / 2 + 0.01)
+    // Networks evaluated per surface point the view sees (eval::supports after keepOccupied; 1 without
+    // blending), and the share of those points in some blending band.
+    double evaluationsPerPoint = 0.0;
+    double blendedShare = 0.0;
 };
 
 // What the centre of each pixel of a width x height view sees (row-major): the first hit's voxel in the

@@ -144,68 +144,90 @@ inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) 
     }
 }
 
-// A block of W points in one occupied voxel `voxel0`, some of them in a blending band: eval::supports() and
-// keepOccupied() for every lane at once, then every network some lane needs, over the whole vector, each
-// lane accumulating weight x radiance in voxel order (the order, rounding and arithmetic of the grouped
-// pass in runtime.cpp, so a point gets the same bits whichever path it takes). Returns false, writing
-// nothing, when some lane is left without an occupied support (the general path flags it).
+// A block of W located points, some of them in a blending band: eval::supports() and keepOccupied() for
+// every lane at once, then, for every voxel of the small box the block's supports span, that voxel's network
+// over the whole vector, each lane accumulating weight x radiance in voxel order (the order, rounding and
+// arithmetic of the grouped pass in runtime.cpp, so a point gets the same bits whichever path it takes).
+// Returns false, writing nothing, when the box holds more than kMaxBoxVoxels voxels (an incoherent block) or
+// some lane is left without an occupied support (the general path flags it).
+constexpr int kMaxBoxVoxels = 8;
+
 template <class V, int Stride>
 bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3],
-                 int32_t voxel0, size_t first) {
+                 const typename V::I c[3], size_t first) {
     using F = typename V::F;
-    constexpr unsigned all = V::W == 32 ? ~0u : (1u << V::W) - 1u;
+    constexpr int W = V::W;
+    constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
     const LocateGrid& g = ctx.grid;
     const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f), band = V::set1(g.band);
-    // Per axis: t, the voxel coordinate as a float, the weights of offsets -1, 0, +1 and the clamp reach.
+    // Per axis: t, the voxel coordinate as a float, the lanes in the lower / upper band, the weights of the
+    // voxel below, the own voxel and the voxel above, the clamp reach, and the coordinates the block spans.
     F t[3], cf[3], w[3][3], reach[3];
-    bool need[3][3];
+    unsigned lo[3], hi[3];
+    int from[3], to[3];
     for (int k = 0; k < 3; ++k) {
         t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
-        cf[k] = V::cvtFloat(V::mini(V::cvtTrunc(t[k]), V::seti(int(g.dims[k]) - 1)));
+        cf[k] = V::cvtFloat(c[k]);
         const F f = V::sub(t[k], cf[k]);
-        const unsigned lo = V::geMask(cf[k], one) & ~V::geMask(f, band) & all;  // eval::bandSide == -1
-        const unsigned hi = V::leMask(cf[k], V::set1(float(g.dims[k]) - 2.0f)) & ~V::leMask(f, V::set1(1.0f - g.band)) & ~lo & all;
-        const F x = V::select(hi, V::sub(t[k], V::add(cf[k], one)), f);  // t - the face's coordinate
+        lo[k] = V::geMask(cf[k], one) & ~V::geMask(f, band) & all;  // eval::bandSide == -1
+        hi[k] = V::leMask(cf[k], V::set1(float(g.dims[k]) - 2.0f)) & ~V::leMask(f, V::set1(1.0f - g.band)) & ~lo[k] & all;
+        const F x = V::select(hi[k], V::sub(t[k], V::add(cf[k], one)), f);  // t - the face's coordinate
         F u = V::div(V::add(x, band), V::set1(2.0f * g.band));  // eval::aboveFaceWeight
         u = V::min(V::max(u, zero), one);
         const F above = V::mul(V::mul(u, u), V::sub(V::set1(3.0f), V::mul(two, u)));
         const F below = V::sub(one, above);
-        w[k][0] = V::select(lo, below, zero);
-        w[k][1] = V::select(lo, above, V::select(hi, below, one));
-        w[k][2] = V::select(hi, above, zero);
-        reach[k] = V::select(lo | hi, V::set1(1.0f + 2.0f * g.band), one);
-        need[k][0] = lo != 0;
-        need[k][1] = true;
-        need[k][2] = hi != 0;
+        w[k][0] = below;
+        w[k][1] = V::select(lo[k], above, V::select(hi[k], below, one));
+        w[k][2] = above;
+        reach[k] = V::select(lo[k] | hi[k], V::set1(1.0f + 2.0f * g.band), one);
+        alignas(64) int32_t lanes[W];
+        V::storei(lanes, c[k]);
+        from[k] = lanes[0];
+        to[k] = lanes[0];
+        for (int l = 0; l < W; ++l) {
+            const int a = lanes[l] - int((lo[k] >> l) & 1u), b = lanes[l] + int((hi[k] >> l) & 1u);
+            from[k] = a < from[k] ? a : from[k];
+            to[k] = b > to[k] ? b : to[k];
+        }
     }
+    if ((to[0] - from[0] + 1) * (to[1] - from[1] + 1) * (to[2] - from[2] + 1) > kMaxBoxVoxels) return false;
+    // Each lane's weight for coordinate X of axis k: its own voxel's, the one below's or the one above's, else 0.
+    auto axisWeight = [&](int k, int X) {
+        const unsigned own = V::equalMask(c[k], V::seti(X));
+        const unsigned below = V::equalMask(c[k], V::seti(X + 1)) & lo[k];
+        const unsigned above = V::equalMask(c[k], V::seti(X - 1)) & hi[k];
+        return V::select(own, w[k][1], V::select(below, w[k][0], V::select(above, w[k][2], zero)));
+    };
     // The occupied supports in voxel order (z, y, x, lower first) and the per-lane sum of their weights.
     struct Term {
         int32_t network;
-        int o[3];
+        int coord[3];
         F raw;
     };
-    Term terms[27];
+    Term terms[kMaxBoxVoxels];
     int count = 0;
     F sum = zero;
-    for (int z = 0; z < 3; ++z)
-        for (int y = 0; y < 3; ++y)
-            for (int x = 0; x < 3; ++x) {
-                if (!need[0][x] || !need[1][y] || !need[2][z]) continue;
-                const F raw = V::mul(V::mul(w[0][x], w[1][y]), w[2][z]);
+    for (int z = from[2]; z <= to[2]; ++z) {
+        const F wz = axisWeight(2, z);
+        for (int y = from[1]; y <= to[1]; ++y) {
+            const F wy = axisWeight(1, y);
+            for (int x = from[0]; x <= to[0]; ++x) {
+                const F raw = V::mul(V::mul(axisWeight(0, x), wy), wz);
                 if ((~V::leMask(raw, zero) & all) == 0) continue;  // no lane has weight > 0 here
-                const int32_t voxel = voxel0 + (x - 1) + int32_t(g.dims[0]) * ((y - 1) + int32_t(g.dims[1]) * (z - 1));
-                const int32_t network = g.dense[voxel];
+                const int32_t network = g.dense[x + int32_t(g.dims[0]) * (y + int32_t(g.dims[1]) * z)];
                 if (network < 0) continue;
-                terms[count++] = {network, {x - 1, y - 1, z - 1}, raw};
+                terms[count++] = {network, {x, y, z}, raw};
                 sum = V::add(sum, raw);
             }
+        }
+    }
     if ((~V::leMask(sum, zero) & all) != all) return false;
     F acc[3] = {zero, zero, zero};
     for (int i = 0; i < count; ++i) {
         const Term& term = terms[i];
         F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
         for (int k = 0; k < 3; ++k) {
-            const F q = V::sub(V::mul(two, V::sub(t[k], V::add(cf[k], V::set1(float(term.o[k]))))), one);
+            const F q = V::sub(V::mul(two, V::sub(t[k], V::set1(float(term.coord[k])))), one);
             in[k] = V::min(V::max(q, V::sub(zero, reach[k])), reach[k]);
         }
         NetworkView net = ctx.networks;
@@ -216,7 +238,7 @@ bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typena
         toRadiance<V>(net, out);
         const unsigned kept = ~V::leMask(term.raw, zero) & all;
         const F weight = V::div(term.raw, sum);
-        for (int c = 0; c < 3; ++c) acc[c] = V::select(kept, V::add(acc[c], V::mul(weight, out[c])), acc[c]);
+        for (int ch = 0; ch < 3; ++ch) acc[ch] = V::select(kept, V::add(acc[ch], V::mul(weight, out[ch])), acc[ch]);
     }
     store3<V, Stride>(ctx.io.out, first, acc);
     return true;
@@ -265,8 +287,8 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         I voxel = V::addi(c[0], V::mullo(V::seti(int(g.dims[0])), V::addi(c[1], V::mullo(V::seti(int(g.dims[1])), c[2]))));
         const int32_t voxel0 = V::firstLane(voxel);
         const bool oneVoxel = V::equalMask(voxel, V::seti(voxel0)) == all;
-        if (inBand & all) {  // blended: in registers when the block shares one occupied voxel
-            if (!oneVoxel || g.dense[voxel0] < 0 || !evalBlended<V, Stride>(ctx, p, n, d, voxel0, first)) {
+        if (inBand & all) {  // blended: in registers when the block spans a few voxels
+            if (!evalBlended<V, Stride>(ctx, p, n, d, c, first)) {
                 def.blocks[def.blockCount++] = uint32_t(b);
                 continue;
             }
