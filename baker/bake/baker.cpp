@@ -130,7 +130,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"epochs", t.epochs},
                  {"loss", lossName(t.loss)},
                  {"demodulated", t.demodulate},
-                 {"blend_band", settings.blendBand}};
+                 {"blend_band", settings.blendBand},
+                 {"weight_decays", t.weightDecays}};
     j["samples"] = result.sampleCount;
     // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
     std::vector<double> err;

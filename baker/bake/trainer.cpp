@@ -72,7 +72,12 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
     return trainVoxel(voxel, v, settings);
 }
 
-VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
+namespace {
+
+// One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
+// parameter but the output biases (added to each step's mean gradient).
+VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings,
+                                float weightDecay) {
     auto start = std::chrono::steady_clock::now();
     VoxelTrainResult result;
     result.voxel = voxel;
@@ -182,6 +187,9 @@ VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entr
                 }
                 float inv = 1.0f / float(e - b);
                 for (float& g : grad) g *= inv;
+                const float wd = weightDecay / float(std::max<size_t>(1, train.size()));
+                if (wd > 0.0f)
+                    for (size_t q = 0; q + size_t(nOut) < grad.size(); ++q) grad[q] += wd * mlp.parameters()[q];
                 adam.step(mlp.parameters(), grad, lr);
             }
             if (!mlp.allFinite()) {
@@ -261,8 +269,27 @@ VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entr
     result.heldOutRelMse = evaluate(evalSet);
     result.trainRelMse = evaluate(train);
     (void)bestOverall;
+    result.weightDecay = weightDecay;
     result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
+}
+
+}  // namespace
+
+VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
+    VoxelTrainResult best;
+    double seconds = 0.0;
+    const std::vector<float> none = {0.0f};
+    for (float decay : settings.weightDecays.empty() ? none : settings.weightDecays) {
+        VoxelTrainResult r = trainVoxelWith(voxel, entries, settings, decay);
+        seconds += r.seconds;
+        // The lowest held-out error wins (the first on a tie); a fallback only if every candidate fell back.
+        const bool better = best.params.empty() || (best.fallback && !r.fallback) ||
+                            (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
+        if (better) best = std::move(r);
+    }
+    best.seconds = seconds;
+    return best;
 }
 
 }  // namespace nrad

@@ -39,6 +39,10 @@ struct TrainSettings {
     // Learn the scattered radiance divided by the surface's reflectance (nrad/eval.h, kFlagDemodulated), so
     // the networks learn lighting and the material (textures included) is multiplied back when shading.
     bool demodulate = true;
+    // L2 penalties on the weights (not the output biases) to choose from, each lambda / (the voxel's training
+    // samples), so that it fades as data grows: every voxel trains once per candidate and keeps the one with
+    // the lowest held-out error. 0 alone trains once, unregularised (docs/training.md).
+    std::vector<float> weightDecays = {0.0f, 2.5f};
 };
 
 struct TrainCurvePoint {
@@ -58,6 +62,7 @@ struct VoxelTrainResult {
     int epochs = 0;  // of the kept attempt
     int attempts = 0;
     bool fallback = false;  // every attempt failed: a constant network was stored
+    float weightDecay = 0.0f;  // the kept candidate of TrainSettings::weightDecays
     std::vector<std::string> events;  // what went wrong in failed attempts
     std::vector<TrainCurvePoint> curve;
     double seconds = 0.0;

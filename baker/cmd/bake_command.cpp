@@ -19,14 +19,49 @@ namespace nrad {
 
 namespace {
 
+// The settings' own defaults, made once (temporaries of these structs in member initialisers make GCC 12
+// report its own vector destructors as maybe-uninitialised).
+const BakeSettings& defaults() {
+    static const BakeSettings s;
+    return s;
+}
+
+std::string joinFloats(const std::vector<float>& v) {
+    std::string s;
+    for (float x : v) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%g", double(x));
+        s += (s.empty() ? "" : ",") + std::string(b);
+    }
+    return s;
+}
+
+// Comma-separated finite values >= 0, 1 to 8 of them.
+bool parseFloats(const std::string& s, std::vector<float>& out) {
+    out.clear();
+    size_t at = 0;
+    while (at <= s.size()) {
+        size_t comma = s.find(',', at);
+        std::string part = s.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+        char* end = nullptr;
+        float v = std::strtof(part.c_str(), &end);
+        if (part.empty() || *end != '\0' || !std::isfinite(v) || v < 0.0f) return false;
+        out.push_back(v);
+        if (comma == std::string::npos) break;
+        at = comma + 1;
+    }
+    return !out.empty() && out.size() <= 8;
+}
+
 struct BakeOptions {
     std::string scene, output, config, stats;
     // Defaults from the settings themselves (one definition; chosen by measurement, docs/training.md).
-    std::string grid = "3", hidden = "9", loss = lossName(TrainSettings{}.loss), encoding = "fp16";
-    uint32_t points = SampleSettings{}.points, paths = SampleSettings{}.paths, seed = 0, minSamples = 64;
+    std::string grid = "3", hidden = "9", loss = lossName(defaults().train.loss), encoding = "fp16";
+    uint32_t points = defaults().samples.points, paths = defaults().samples.paths, seed = 0, minSamples = 64;
     NeeMode nee = NeeMode::Power;
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
-    float learningRate = 0.01f, blendBand = BakeSettings{}.blendBand;
+    float learningRate = 0.01f, blendBand = defaults().blendBand;
+    std::string weightDecay = joinFloats(defaults().train.weightDecays);
     bool quiet = false, noMetadata = false, noDemodulate = false;
 };
 
@@ -78,7 +113,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             };
             static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
                                           "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
-                                          "blend_band"};
+                                          "blend_band", "weight_decay"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
@@ -102,6 +137,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("encoding", "--encoding", o.encoding);
             take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
             take("blend_band", "--blend-band", o.blendBand);
+            take("weight_decay", "--weight-decay", o.weightDecay);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
             return kExitBadInput;
@@ -123,6 +159,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
         return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
     s.blendBand = o.blendBand;
+    if (!parseFloats(o.weightDecay, s.train.weightDecays))
+        return usage("--weight-decay " + o.weightDecay + ": expected 1 to 8 comma-separated values >= 0");
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -206,6 +244,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             voxels.push_back({{"voxel", v.voxel}, {"train_samples", v.trainCount}, {"held_out_samples", v.heldOutCount},
                               {"held_out_relmse", v.heldOutRelMse}, {"train_relmse", v.trainRelMse}, {"scale", v.scale},
                               {"epochs", v.epochs}, {"attempts", v.attempts}, {"fallback", v.fallback},
+                              {"weight_decay", v.weightDecay},
                               {"events", v.events}, {"seconds", v.seconds},
                               {"curve_epoch_seconds_relmse", curve}});
         }
@@ -246,6 +285,9 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--loss", o->loss, "l2, relative-l2 (default) or log-l2");
     cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
+    cmd->add_option("--weight-decay", o->weightDecay,
+                    "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training "
+                    "samples; 0 = unregularised (default " + joinFloats(defaults().train.weightDecays) + ")");
     cmd->add_option("--blend-band", o->blendBand,
                     "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; "
                     "0 = none (default 0.0625)");

@@ -134,12 +134,12 @@ TEST_P(Furnace, PathTracerWithinOnePercentAndTheAssetWithinItsBound) {
     ASSERT_TRUE(finiteImage(v.neural.image));
     std::printf("furnace a = %.2f: asset |error| mean %.3f%%, 95th percentile %.3f%%, worst %.3f%%; image relMSE %.3g\n", a,
                 100.0 * sum / n, 100.0 * p95, 100.0 * worst, v.neural.metrics.relMse);
-    // Stated bounds (docs/stability.md): mean error 2.5% (3% at a = 0.99), 95th percentile 7% (8%), worst 30%.
-    // (With log-l2 the bounds were 2% and 5%, but the worst points were 35-71% off; relative-l2, the default
-    // since issue 13, trades a little of the mean for a worst case of 15-24%.)
-    EXPECT_LT(sum / n, a > 0.95 ? 0.03 : 0.025);
-    EXPECT_LT(p95, a > 0.95 ? 0.08 : 0.07);
-    EXPECT_LT(worst, 0.30);
+    // Stated bounds (docs/stability.md): mean error 1.5% (2% at a = 0.99), 95th percentile 4% (5%), worst 10%
+    // (18% at a = 0.99). Measured since the per-voxel choice of weight decay (issue 13): 0.26 / 0.98 / 1.3%,
+    // 0.7 / 2.2 / 3.7%, 3.9 / 7.0 / 13.2%; unregularised the worst points were 10-20% off (35-71% with log-l2).
+    EXPECT_LT(sum / n, a > 0.95 ? 0.02 : 0.015);
+    EXPECT_LT(p95, a > 0.95 ? 0.05 : 0.04);
+    EXPECT_LT(worst, a > 0.95 ? 0.18 : 0.10);
 }
 
 INSTANTIATE_TEST_SUITE_P(Albedo, Furnace, ::testing::Values("0.5", "0.9", "0.99"));

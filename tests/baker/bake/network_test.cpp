@@ -118,7 +118,8 @@ TEST(Trainer, SingleSampleVoxelAndConstantTargets) {
     bounds.extend(glm::vec3(1.0f));
     VoxelGrid grid(bounds, glm::uvec3(1));
     TrainingSample s{glm::vec3(0.5f), glm::vec3(0, 0, 1), glm::vec3(0, 0, 1), glm::vec3(2.0f, 1.0f, 0.5f), 0};
-    VoxelTrainResult r = trainVoxel(grid, 0, {&s}, TrainSettings{});
+    const TrainSettings settings;
+    VoxelTrainResult r = trainVoxel(grid, 0, {&s}, settings);
     EXPECT_EQ(r.trainCount, 1u);
     EXPECT_EQ(r.heldOutCount, 0u);
     EXPECT_LT(r.heldOutRelMse, 1e-3);  // judged on its one sample
@@ -126,7 +127,7 @@ TEST(Trainer, SingleSampleVoxelAndConstantTargets) {
     // Black voxel: all targets zero, scale stays finite and positive.
     TrainingSample black = s;
     black.radiance = glm::vec3(0.0f);
-    VoxelTrainResult rb = trainVoxel(grid, 0, {&black, &black, &black}, TrainSettings{});
+    VoxelTrainResult rb = trainVoxel(grid, 0, {&black, &black, &black}, settings);
     EXPECT_GT(rb.scale, 0.0f);
     EXPECT_TRUE(std::isfinite(rb.scale));
     EXPECT_LT(rb.heldOutRelMse, 1e-3);
