@@ -60,6 +60,8 @@ std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, fl
         count = eval::keepOccupied(sup, count, [&](int64_t v) { return occupied[size_t(v)] != 0; });
         for (int k = 0; k < count; ++k)
             out[size_t(sup[k].voxel)].push_back({&s, sup[k].weight, glm::vec3(sup[k].local[0], sup[k].local[1], sup[k].local[2])});
+        if (count == 0)  // rounded just outside the grid (training_samples.cpp keeps its piece's voxel): there
+            out[s.voxel].push_back({&s, 1.0f, grid.positionInVoxel(s.position, s.voxel)});
     }
     return out;
 }
@@ -255,8 +257,8 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         result.events.push_back("fallback: constant network with the voxel's mean radiance");
         std::fill(mlp.parameters().begin(), mlp.parameters().end(), 0.0f);
         glm::dvec3 mean(0.0);
-        for (size_t i : train) mean += glm::dvec3(targets[i]);
-        if (!train.empty()) mean /= double(train.size());
+        for (size_t i : train) mean += double(entries[i].weight) * glm::dvec3(targets[i]);
+        if (weightSum > 0.0) mean /= weightSum;
         size_t outBias = mlp.parameters().size() - size_t(nOut);
         for (int c = 0; c < nOut; ++c) {
             float t = float(mean[c]) * invScale;

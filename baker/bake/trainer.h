@@ -39,8 +39,8 @@ struct TrainSettings {
     // Learn the scattered radiance divided by the surface's reflectance (nrad/eval.h, kFlagDemodulated), so
     // the networks learn lighting and the material (textures included) is multiplied back when shading.
     bool demodulate = true;
-    // L2 penalties on the weights (not the output biases) to choose from, each lambda / (the voxel's training
-    // samples), so that it fades as data grows: every voxel trains once per candidate and keeps the one with
+    // L2 penalties on the weights (not the output biases) to choose from, each lambda / (the number of the
+    // network's training samples, its blending margin's included), so that it fades as data grows: every voxel trains once per candidate and keeps the one with
     // the lowest held-out error. 0 alone trains once, unregularised (docs/training.md).
     std::vector<float> weightDecays = {0.0f, 2.5f};
 };

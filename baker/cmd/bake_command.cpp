@@ -137,7 +137,18 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("encoding", "--encoding", o.encoding);
             take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
             take("blend_band", "--blend-band", o.blendBand);
-            take("weight_decay", "--weight-decay", o.weightDecay);
+            if (cfg.contains("weight_decay") && cmd->count("--weight-decay") == 0) {
+                const nlohmann::json& w = cfg["weight_decay"];
+                if (w.is_number()) {
+                    o.weightDecay = joinFloats({w.get<float>()});
+                } else if (w.is_array()) {
+                    std::vector<float> v;
+                    for (const nlohmann::json& x : w) v.push_back(x.get<float>());
+                    o.weightDecay = joinFloats(v);
+                } else {
+                    take("weight_decay", "--weight-decay", o.weightDecay);
+                }
+            }
         } catch (const std::exception& e) {
             std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
             return kExitBadInput;

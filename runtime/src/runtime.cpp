@@ -224,8 +224,10 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
 }
 
 NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v) {
-    if (count > UINT32_MAX) {  // point indices are 32-bit; split huge batches
-        for (size_t first = 0; first < count; first += UINT32_MAX) {
+    // Entry indices are 32-bit and a point makes up to eval::kMaxSupports entries: split huge batches.
+    constexpr size_t kMaxBatch = UINT32_MAX / eval::kMaxSupports;
+    if (count > kMaxBatch) {
+        for (size_t first = 0; first < count; first += kMaxBatch) {
             rt::BatchIo part = v;
             for (int c = 0; c < 3; ++c) {
                 part.p[c] += first * v.stride;
@@ -234,7 +236,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
                 part.out[c] += first * v.stride;
             }
             if (part.flags) part.flags += first;
-            evaluateBatch(a, std::min<size_t>(UINT32_MAX, count - first), part);
+            evaluateBatch(a, std::min<size_t>(kMaxBatch, count - first), part);
         }
         return NRAD_OK;
     }

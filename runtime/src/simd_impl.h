@@ -269,7 +269,8 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             continue;
         }
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
-        // blending band (eval::bandSide): a block with a point in a band takes the general path.
+        // blending band (eval::bandSide); a block with a point in a band is blended by evalBlended (or, when it
+        // spans too many voxels, takes the general path).
         F local[3];
         I c[3];
         unsigned inBand = 0;

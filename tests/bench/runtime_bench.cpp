@@ -138,9 +138,11 @@ void probeLookup(const ProbeGrid& g, const float p[3], const float d[3], float r
 int main(int argc, char** argv) {
     size_t points = 2'000'000;
     int repeat = 3;
+    float band = 0.0f;  // --band B: a blended asset (format 2.1) with that band
     for (int i = 1; i + 1 < argc; ++i) {
         if (std::string(argv[i]) == "--points") points = size_t(std::atol(argv[++i]));
         else if (std::string(argv[i]) == "--repeat") repeat = std::max(1, std::atoi(argv[++i]));
+        else if (std::string(argv[i]) == "--band") band = std::min(0.5f, std::max(0.0f, float(std::atof(argv[++i]))));
     }
     const int hw = int(std::max(1u, std::thread::hardware_concurrency()));
 
@@ -156,13 +158,17 @@ int main(int argc, char** argv) {
     for (uint32_t v = 0; v < 27; ++v) a.voxels.push_back({v, 1.0f});
     for (size_t i = 0; i < 27 * a.topology.parameterCount(); ++i) a.weights.push_back(u(rng));
     a.topology.outputTransform = std::getenv("NRAD_BENCH_LINEAR") ? nrad::format::OutputTransform::ClampedLinear : nrad::format::OutputTransform::Exponential;
+    if (band > 0.0f) {
+        a.header.flags |= nrad::format::kFlagBlended;
+        a.grid.blendBand = band;
+    }
     std::vector<uint8_t> bytes = nrad::format::encode(a);
     NradAsset asset = nullptr;
     if (nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0) != NRAD_OK) return 1;
     const double networkBytes = 27.0 * 240.0;
 
-    std::printf("runtime_bench: %zu points, 3x3x3 voxels of 9-9-3 fp16 (%.0f bytes of weights), %d hardware threads\n",
-                points, networkBytes, hw);
+    std::printf("runtime_bench: %zu points, 3x3x3 voxels of 9-9-3 fp16 (%.0f bytes of weights), blend band %g, %d hardware threads\n",
+                points, networkBytes, double(band), hw);
     Points coherent = makePoints(points, true, a.grid, 2), incoherent = makePoints(points, false, a.grid, 3);
     for (int threads : {1, hw}) {
         // The peak of the widest vectors this CPU has, and of AVX2's, measured now; each kernel is also

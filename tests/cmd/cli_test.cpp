@@ -89,6 +89,13 @@ TEST(Cli, BadFlagsExitTwo) {
     r = run("render " + scene + out + " --camera 3");
     EXPECT_EQ(r.exitCode, 2);
     EXPECT_NE(r.output.find("has 1 camera"), std::string::npos) << r.output;
+    const std::string asset = " -o '" + dir + "/a.nrad'";
+    r = run("bake " + scene + asset + " --blend-band 0.6");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_NE(r.output.find("--blend-band"), std::string::npos) << r.output;
+    r = run("bake " + scene + asset + " --weight-decay 0,-1");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_NE(r.output.find("--weight-decay 0,-1"), std::string::npos) << r.output;
     EXPECT_TRUE(noFilesIn(dir));
 }
 

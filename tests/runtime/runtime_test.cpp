@@ -346,6 +346,9 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
     pts.n.insert(pts.n.end(), run.n.begin(), run.n.end());
     pts.d.insert(pts.d.end(), run.d.begin(), run.d.end());
     const size_t n = pts.p.size() / 3;
+    for (NradKernel kernel : kernels()) {
+    ASSERT_EQ(nradSelectKernel(kernel), NRAD_OK);
+    SCOPED_TRACE("kernel " + std::to_string(int(kernel)));
     std::vector<float> rgb(3 * n);
     ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data()), NRAD_OK);
     std::vector<float> soa[12];
@@ -366,6 +369,8 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
             EXPECT_EQ(rgb[3 * i + size_t(c)], one[c]) << "point " << i;
         }
     }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
     const char* json;
     size_t length;
     ASSERT_EQ(nradGetMetadata(asset.get(), &json, &length), NRAD_OK);

@@ -100,7 +100,7 @@ inline int bandSide(int c, float f, uint32_t dim, float band) {
 }
 
 // Every network support of p, in increasing voxel order (z, then y, then x, lower first), with weights that
-// sum to 1 (in float, before keepOccupied). Returns their count: 0 outside the grid (or for a non-finite p),
+// sum to 1 up to rounding (before keepOccupied). Returns their count: 0 outside the grid (or for a non-finite p),
 // 1 with weight 1 and the position clamped to [-1, 1] when band is 0 or p lies in no band (exactly locate()).
 inline int supports(const format::Grid& g, const float factor[3], float band, const float p[3], Support out[kMaxSupports]) {
     int coord[3][2];

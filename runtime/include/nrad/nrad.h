@@ -109,7 +109,8 @@ NradStatus nradGetMetadata(NradAsset asset, const char** json, size_t* length);
 enum {
     NRAD_POINT_OK = 0,
     NRAD_POINT_OUTSIDE_GRID = 1,   /* the position is outside the asset's grid: radiance 0 */
-    NRAD_POINT_EMPTY_VOXEL = 2,    /* the voxel has no network (no surface was baked there): radiance 0 */
+    NRAD_POINT_EMPTY_VOXEL = 2,    /* no network shades the point (its voxel has none, and with
+                                      NRAD_CONTENT_BLENDED no neighbour it blends with has one): radiance 0 */
     NRAD_POINT_INVALID_INPUT = 4   /* a non-finite input value: radiance 0 */
 };
 
