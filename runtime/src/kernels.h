@@ -75,7 +75,12 @@ struct Deferred {
     int32_t* network;
     float* local;  // 3 per point
     size_t count;
+    size_t blendedBlocks;  // blocks blended in registers (evalBlended)
 };
+
+// Blocks blended in registers since the process started, over all threads: lets tests see that the
+// vector blending path is taken (its results are bit-identical to the general path's by design).
+uint64_t blendedBlocksSoFar();
 
 // Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
 // blending band and in one occupied voxel is located and evaluated in vector registers, with its results and

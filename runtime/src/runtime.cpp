@@ -56,6 +56,7 @@ NradKernel bestKernel() {
 }
 
 std::atomic<int> gKernel{NRAD_KERNEL_AUTO};
+std::atomic<uint64_t> gBlendedBlocks{0};
 
 NradKernel activeKernel() {
     int k = gKernel.load(std::memory_order_relaxed);
@@ -245,7 +246,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     s.index.resize(count);
     s.network.resize(count);
     s.local.resize(count * 3);
-    rt::Deferred def{nullptr, 0, s.index.data(), s.network.data(), s.local.data(), 0};
+    rt::Deferred def{nullptr, 0, s.index.data(), s.network.data(), s.local.data(), 0, 0};
     const NradKernel kind = activeKernel();
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
@@ -276,6 +277,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
         ctx.scales = a.scales.data();
         ctx.io = v;
         driver(ctx, blocks, def);
+        if (def.blendedBlocks) gBlendedBlocks.fetch_add(def.blendedBlocks, std::memory_order_relaxed);
     }
     // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
     //    tail.
@@ -347,6 +349,8 @@ NradStatus guarded(F&& f) {
 }
 
 }  // namespace
+
+uint64_t nrad::rt::blendedBlocksSoFar() { return gBlendedBlocks.load(std::memory_order_relaxed); }
 
 extern "C" {
 

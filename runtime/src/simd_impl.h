@@ -293,6 +293,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 def.blocks[def.blockCount++] = uint32_t(b);
                 continue;
             }
+            ++def.blendedBlocks;
             if (ctx.io.flags)
                 for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
             continue;
