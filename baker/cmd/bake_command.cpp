@@ -6,6 +6,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -36,21 +37,25 @@ std::string joinFloats(const std::vector<float>& v) {
     return s;
 }
 
+// The comma-separated parts of s ("" gives one empty part).
+std::vector<std::string> splitCommas(const std::string& s) {
+    std::vector<std::string> parts;
+    size_t at = 0;
+    for (size_t comma; (comma = s.find(',', at)) != std::string::npos; at = comma + 1) parts.push_back(s.substr(at, comma - at));
+    parts.push_back(s.substr(at));
+    return parts;
+}
+
 // Comma-separated finite values >= 0, 1 to 8 of them.
 bool parseFloats(const std::string& s, std::vector<float>& out) {
     out.clear();
-    size_t at = 0;
-    while (at <= s.size()) {
-        size_t comma = s.find(',', at);
-        std::string part = s.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    for (const std::string& part : splitCommas(s)) {
         char* end = nullptr;
         float v = std::strtof(part.c_str(), &end);
         if (part.empty() || *end != '\0' || !std::isfinite(v) || v < 0.0f) return false;
         out.push_back(v);
-        if (comma == std::string::npos) break;
-        at = comma + 1;
     }
-    return !out.empty() && out.size() <= 8;
+    return out.size() <= 8;
 }
 
 struct BakeOptions {
@@ -80,18 +85,13 @@ bool parseGrid(const std::string& s, glm::uvec3& out) {
 
 bool parseHidden(const std::string& s, std::vector<int>& out) {
     out.clear();
-    size_t at = 0;
-    while (at <= s.size()) {
-        size_t comma = s.find(',', at);
-        std::string part = s.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    for (const std::string& part : splitCommas(s)) {
         char* end = nullptr;
         long v = std::strtol(part.c_str(), &end, 10);
         if (part.empty() || *end != '\0' || v < 1 || v > long(format::kMaxHiddenWidth)) return false;
         out.push_back(int(v));
-        if (comma == std::string::npos) break;
-        at = comma + 1;
     }
-    return !out.empty() && out.size() <= format::kMaxHiddenLayers;
+    return out.size() <= format::kMaxHiddenLayers;
 }
 
 int usage(const std::string& what) {

@@ -153,20 +153,20 @@ inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) 
 constexpr int kMaxBoxVoxels = 8;
 
 template <class V, int Stride>
-bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3],
+bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typename V::F n[3], const typename V::F d[3],
                  const typename V::I c[3], size_t first) {
     using F = typename V::F;
     constexpr int W = V::W;
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
     const LocateGrid& g = ctx.grid;
     const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f), band = V::set1(g.band);
-    // Per axis: t, the voxel coordinate as a float, the lanes in the lower / upper band, the weights of the
-    // voxel below, the own voxel and the voxel above, the clamp reach, and the coordinates the block spans.
-    F t[3], cf[3], w[3][3], reach[3];
+    // Per axis (t: the grid coordinate, c: the voxel coordinate, both from the block driver): the voxel
+    // coordinate as a float, the lanes in the lower / upper band, the weights of the voxel below, the own
+    // voxel and the voxel above, the clamp reach, and the coordinates the block spans.
+    F cf[3], w[3][3], reach[3];
     unsigned lo[3], hi[3];
     int from[3], to[3];
     for (int k = 0; k < 3; ++k) {
-        t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
         cf[k] = V::cvtFloat(c[k]);
         const F f = V::sub(t[k], cf[k]);
         lo[k] = V::geMask(cf[k], one) & ~V::geMask(f, band) & all;  // eval::bandSide == -1
@@ -191,13 +191,16 @@ bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typena
         }
     }
     if ((to[0] - from[0] + 1) * (to[1] - from[1] + 1) * (to[2] - from[2] + 1) > kMaxBoxVoxels) return false;
-    // Each lane's weight for coordinate X of axis k: its own voxel's, the one below's or the one above's, else 0.
-    auto axisWeight = [&](int k, int X) {
-        const unsigned own = V::equalMask(c[k], V::seti(X));
-        const unsigned below = V::equalMask(c[k], V::seti(X + 1)) & lo[k];
-        const unsigned above = V::equalMask(c[k], V::seti(X - 1)) & hi[k];
-        return V::select(own, w[k][1], V::select(below, w[k][0], V::select(above, w[k][2], zero)));
-    };
+    // Each lane's weight for coordinate X of axis k: its own voxel's, the one below's or the one above's,
+    // else 0; for every coordinate of the box (at most kMaxBoxVoxels along one axis).
+    F axisWeight[3][kMaxBoxVoxels];
+    for (int k = 0; k < 3; ++k)
+        for (int X = from[k]; X <= to[k]; ++X) {
+            const unsigned own = V::equalMask(c[k], V::seti(X));
+            const unsigned below = V::equalMask(c[k], V::seti(X + 1)) & lo[k];
+            const unsigned above = V::equalMask(c[k], V::seti(X - 1)) & hi[k];
+            axisWeight[k][X - from[k]] = V::select(own, w[k][1], V::select(below, w[k][0], V::select(above, w[k][2], zero)));
+        }
     // The occupied supports in voxel order (z, y, x, lower first) and the per-lane sum of their weights.
     struct Term {
         int32_t network;
@@ -208,11 +211,11 @@ bool evalBlended(const BlockContext& ctx, const typename V::F p[3], const typena
     int count = 0;
     F sum = zero;
     for (int z = from[2]; z <= to[2]; ++z) {
-        const F wz = axisWeight(2, z);
+        const F wz = axisWeight[2][z - from[2]];
         for (int y = from[1]; y <= to[1]; ++y) {
-            const F wy = axisWeight(1, y);
+            const F wy = axisWeight[1][y - from[1]];
             for (int x = from[0]; x <= to[0]; ++x) {
-                const F raw = V::mul(V::mul(axisWeight(0, x), wy), wz);
+                const F raw = V::mul(V::mul(axisWeight[0][x - from[0]], wy), wz);
                 if ((~V::leMask(raw, zero) & all) == 0) continue;  // no lane has weight > 0 here
                 const int32_t network = g.dense[x + int32_t(g.dims[0]) * (y + int32_t(g.dims[1]) * z)];
                 if (network < 0) continue;
@@ -271,13 +274,13 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
         // blending band (eval::bandSide); a block with a point in a band is blended by evalBlended (or, when it
         // spans too many voxels, takes the general path).
-        F local[3];
+        F local[3], t[3];
         I c[3];
         unsigned inBand = 0;
         for (int k = 0; k < 3; ++k) {
-            F t = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
-            c[k] = V::mini(V::cvtTrunc(t), V::seti(int(g.dims[k]) - 1));  // t >= 0 here
-            F cf = V::cvtFloat(c[k]), f = V::sub(t, cf);
+            t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));
+            c[k] = V::mini(V::cvtTrunc(t[k]), V::seti(int(g.dims[k]) - 1));  // t >= 0 here
+            F cf = V::cvtFloat(c[k]), f = V::sub(t[k], cf);
             if (g.band > 0.0f) {  // c > 0 && f < band, or c + 1 < dims && f > 1 - band (f is never NaN here)
                 inBand |= V::geMask(cf, one) & ~V::geMask(f, V::set1(g.band));
                 inBand |= V::leMask(cf, V::set1(float(g.dims[k]) - 2.0f)) & ~V::leMask(f, V::set1(1.0f - g.band));
@@ -289,7 +292,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         const int32_t voxel0 = V::firstLane(voxel);
         const bool oneVoxel = V::equalMask(voxel, V::seti(voxel0)) == all;
         if (inBand & all) {  // blended: in registers when the block spans a few voxels
-            if (!evalBlended<V, Stride>(ctx, p, n, d, c, first)) {
+            if (!evalBlended<V, Stride>(ctx, t, n, d, c, first)) {
                 def.blocks[def.blockCount++] = uint32_t(b);
                 continue;
             }
