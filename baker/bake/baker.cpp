@@ -48,7 +48,27 @@ uint64_t sceneHash(const Scene& scene) {
                      l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone};
         hashBytes(h, f, sizeof f / sizeof f[0]);
     }
+    // The environment lights the scene too (only when active, so scenes lit by their own lights keep the
+    // hashes, and the cached references, they had before environments existed).
+    if (const Environment& e = scene.environment; e.active()) {
+        float f[] = {float(e.kind), e.color.x, e.color.y, e.color.z, e.intensity, e.rotationDegrees, float(e.width), float(e.height)};
+        hashBytes(h, f, sizeof f / sizeof f[0]);
+        hashBytes(h, e.texels.data(), e.texels.size());
+    }
     return h;
+}
+
+static nlohmann::json environmentMetadata(const Environment& e) {
+    if (!e.active()) return {{"kind", "none"}};
+    nlohmann::json j = {{"kind", e.kind == Environment::Kind::Map ? "map" : "constant"},
+                        {"source", e.source},
+                        {"intensity", e.intensity},
+                        {"rotation_degrees", e.rotationDegrees},
+                        {"default", e.isDefault},
+                        {"description", e.describe()}};
+    if (e.kind == Environment::Kind::Constant) j["color"] = {e.color.x, e.color.y, e.color.z};
+    if (e.kind == Environment::Kind::Map) j["size"] = {e.width, e.height};
+    return j;
 }
 
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
@@ -131,7 +151,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"loss", lossName(t.loss)},
                  {"demodulated", t.demodulate},
                  {"blend_band", settings.blendBand},
-                 {"weight_decays", t.weightDecays}};
+                 {"weight_decays", t.weightDecays},
+                 {"environment", environmentMetadata(scene.environment)}};
     j["samples"] = result.sampleCount;
     // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
     std::vector<double> err;

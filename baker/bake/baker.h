@@ -50,7 +50,8 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
 // bake (tool, settings, scene hash, per-voxel held-out error), never timings.
 std::string assetMetadata(const Scene& scene, const BakeSettings& settings, const BakeResult& result);
 
-// FNV-1a 64-bit hash of the scene's geometry and materials as imported (what the bake depends on).
+// FNV-1a 64-bit hash of the scene as imported and lit (geometry, materials, lights, the active environment):
+// what the bake depends on. Recorded in the asset; validate and render --asset compare it.
 uint64_t sceneHash(const Scene& scene);
 
 }  // namespace nrad

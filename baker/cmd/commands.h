@@ -27,6 +27,28 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
 // index the scene does not have.
 int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera);
 
+// The lighting options every command that renders shares: --environment none|r,g,b|FILE,
+// --environment-intensity, --environment-rotation (degrees about +Y).
+struct EnvironmentOptions {
+    std::string spec;  // empty: not given
+    float intensity = 1.0f;
+    float rotationDegrees = 0.0f;
+};
+void addEnvironmentOptions(CLI::App* cmd, EnvironmentOptions& o);
+
+// Sets scene.environment. Order: the flags when --environment is given; else the environment an asset
+// recorded (`recorded`, the metadata's bake.environment, for validate and render --asset); else, for a scene
+// with no light of its own, the default sky (said on stderr unless quiet). A bad value or map prints
+// "nrad COMMAND: ..." and returns kExitUsage or kExitBadInput.
+int applyEnvironmentForCommand(const char* command, CLI::App* cmd, const EnvironmentOptions& o, bool quiet, Scene& scene,
+                               const std::string& recordedMetadata = {});
+
+// validate and render --asset: refuses (kExitBadInput, naming both files) an asset whose recorded scene hash
+// is not the scene's as loaded and lit, unless force. An asset without metadata cannot be checked (said on
+// stderr unless quiet).
+int checkAssetSceneForCommand(const char* command, const std::string& assetPath, const std::string& metadata,
+                              const Scene& scene, bool force, bool quiet);
+
 // Each registers its subcommand; the returned callback runs it and returns an exit code.
 std::function<int()> addRenderCommand(CLI::App& app);
 std::function<int()> addBakeCommand(CLI::App& app);

@@ -41,6 +41,8 @@ struct RenderOptions {
     uint32_t neeWarmup = NeeSettings{}.warmupSteps;
     int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
+    EnvironmentOptions environment;
+    bool force = false;
 };
 
 int writeOutputs(const RenderOptions& o, const Image& image) {
@@ -55,13 +57,7 @@ int writeOutputs(const RenderOptions& o, const Image& image) {
 
 // Primary visibility by Embree, radiance from the asset through the public runtime API.
 int renderNeural(const RenderOptions& o, const Scene& scene, const Accel& accel, const Camera& camera,
-                 const RenderSettings& settings) {
-    nrad::Asset asset;
-    std::string message;
-    if (NradStatus st = asset.loadFromFile(o.asset.c_str(), &message); st != NRAD_OK) {
-        std::fprintf(stderr, "nrad render: %s\n", message.c_str());
-        return kExitBadInput;
-    }
+                 const RenderSettings& settings, const nrad::Asset& asset) {
     ProgressBar bar("render", !o.quiet);
     Image image;
     NeuralRenderStats stats;
@@ -82,7 +78,7 @@ int renderNeural(const RenderOptions& o, const Scene& scene, const Accel& accel,
     return kExitOk;
 }
 
-int runRender(const RenderOptions& o) {
+int runRender(const RenderOptions& o, CLI::App* cmd) {
     for (const std::string& out : o.outputs)
         if (!isSupportedImagePath(out)) {
             std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", out.c_str());
@@ -92,6 +88,21 @@ int runRender(const RenderOptions& o) {
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
     if (int code = loadSceneForCommand("render", o.scene, o.quiet, scene)) return code;
+    nrad::Asset asset;
+    std::string metadata;
+    if (!o.asset.empty()) {
+        std::string message;
+        if (NradStatus st = asset.loadFromFile(o.asset.c_str(), &message); st != NRAD_OK) {
+            std::fprintf(stderr, "nrad render: %s\n", message.c_str());
+            return kExitBadInput;
+        }
+        const char* json = nullptr;
+        size_t length = 0;
+        if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
+    }
+    if (int code = applyEnvironmentForCommand("render", cmd, o.environment, o.quiet, scene, metadata)) return code;
+    if (!o.asset.empty())
+        if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
     Camera camera;
     if (int code = chooseCameraForCommand("render", scene, o.camera, o.quiet, camera)) return code;
     RenderSettings settings;
@@ -107,10 +118,8 @@ int runRender(const RenderOptions& o) {
         std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", o.chosenLight.c_str());
         return kExitUsage;
     }
-    if (!o.asset.empty()) return renderNeural(o, scene, accel, camera, settings);
+    if (!o.asset.empty()) return renderNeural(o, scene, accel, camera, settings, asset);
     LightSampler lights(scene);
-    if (lights.empty() && !o.quiet)
-        std::fprintf(stderr, "warning: %s: the scene has no light sources; the image is black\n", o.scene.c_str());
     auto t1 = std::chrono::steady_clock::now();
 
     NeeSettings nee;
@@ -205,8 +214,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(0, 1 << 20));
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
+    addEnvironmentOptions(cmd, opts->environment);
+    cmd->add_flag("--force", opts->force, "--asset: use an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
-    return [opts]() { return runRender(*opts); };
+    return [opts, cmd]() { return runRender(*opts, cmd); };
 }
 
 }  // namespace nrad

@@ -23,7 +23,8 @@ struct ValidateOptions {
     int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 6, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
     uint32_t seed = 0;
     float exposure = 0.0f;
-    bool noCache = false, noBaseline = false, quiet = false;
+    bool noCache = false, noBaseline = false, quiet = false, force = false;
+    EnvironmentOptions environment;
 };
 
 // $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report.
@@ -33,7 +34,7 @@ std::string defaultCacheDir(const std::string& output) {
     return (std::filesystem::path(output) / "cache").string();
 }
 
-int runValidate(const ValidateOptions& o) {
+int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     nlohmann::json bakeStats;
     if (!o.bakeStats.empty()) {
         std::ifstream f(o.bakeStats);
@@ -53,6 +54,14 @@ int runValidate(const ValidateOptions& o) {
         std::fprintf(stderr, "nrad validate: %s\n", message.c_str());
         return kExitBadInput;
     }
+    std::string metadata;
+    {
+        const char* json = nullptr;
+        size_t length = 0;
+        if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
+    }
+    if (int code = applyEnvironmentForCommand("validate", cmd, o.environment, o.quiet, scene, metadata)) return code;
+    if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
     ValidateSettings s;
     if (int code = chooseCameraForCommand("validate", scene, o.camera, o.quiet, s.camera)) return code;
     s.width = o.width;
@@ -141,8 +150,10 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
     cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(CLI::Range(-64.0f, 64.0f));
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
+    addEnvironmentOptions(cmd, o->environment);
+    cmd->add_flag("--force", o->force, "Validate an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
-    return [o]() { return runValidate(*o); };
+    return [o, cmd]() { return runValidate(*o, cmd); };
 }
 
 }  // namespace nrad

@@ -22,20 +22,19 @@ float spotAttenuation(const PunctualLight& light, const glm::vec3& wFromLight) {
     return t * t;
 }
 
-LightSampler::LightSampler(const Scene& scene) : scene_(scene) {
+LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(scene.environment) {
     sceneRadius_ = std::max(scene.bounds.radius(), 1e-30f);
     entryOfTriangle_.assign(scene.mesh.triangleCount(), -1);
     std::vector<double> power;
     for (size_t t = 0; t < scene.mesh.triangleCount(); ++t) {
         const Material& m = scene.materials[scene.mesh.materialIds[t]];
         if (!m.emissive()) continue;
-        glm::vec3 e = m.emission;
-        if (m.emissiveTexture.valid()) e *= glm::vec3(scene.textures[size_t(m.emissiveTexture.texture)].average);
+        glm::vec3 e = scene.triangleEmission(t);  // averaged over the triangle's texels: zero-power emitters are no lights
         float area = scene.mesh.triangleArea(t);
         double pw = double(area) * kPi * luminance(e) * (m.doubleSided ? 2.0 : 1.0);
         if (!(pw > 0.0) || !std::isfinite(pw)) continue;
         entryOfTriangle_[t] = int32_t(lights_.size());
-        lights_.push_back({true, uint32_t(t), area});
+        lights_.push_back({Entry::Kind::Triangle, uint32_t(t), area});
         power.push_back(pw);
     }
     for (size_t i = 0; i < scene.lights.size(); ++i) {
@@ -51,8 +50,17 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene) {
                 break;
         }
         if (!(pw > 0.0) || !std::isfinite(pw)) continue;
-        lights_.push_back({false, uint32_t(i), 0.0f});
+        lights_.push_back({Entry::Kind::Punctual, uint32_t(i), 0.0f});
         power.push_back(pw);
+    }
+    if (environment_.active()) {
+        // What crosses the scene's bounding sphere: pi x mean radiance over its area (pbrt's Phi).
+        double pw = 4.0 * kPi * kPi * double(sceneRadius_) * double(sceneRadius_) * luminance(scene.environment.meanRadiance());
+        if (pw > 0.0 && std::isfinite(pw)) {
+            environmentEntry_ = int32_t(lights_.size());
+            lights_.push_back({Entry::Kind::Environment, 0, 0.0f});
+            power.push_back(pw);
+        }
     }
     cdf_.resize(power.size());
     double sum = 0.0;
@@ -133,7 +141,8 @@ LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, 
     LightSample ls;
     if (!(pick > 0.0f)) return ls;
     const Entry& e = lights_[i];
-    if (e.triangle) {
+    if (e.kind == Entry::Kind::Environment) return environmentSample(pick, u);
+    if (e.triangle()) {
         const glm::uvec3& tri = scene_.mesh.triangles[e.index];
         float su = std::sqrt(u.x);
         float b1 = su * (1.0f - u.y), b2 = su * u.y;  // uniform by area
@@ -195,6 +204,26 @@ LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::
     return ls;
 }
 
+LightSample LightSampler::environmentSample(float pick, const glm::vec2& u) const {
+    LightSample ls;
+    float pdf;
+    ls.wi = environment_.sample(u, pdf, ls.Li);
+    if (!(pdf > 0.0f)) return LightSample{};
+    ls.pdf = pick * pdf;
+    ls.distance = std::numeric_limits<float>::infinity();
+    return ls;
+}
+
+float LightSampler::pdfEnvironment(const glm::vec3& wi) const {
+    if (environmentEntry_ < 0) return 0.0f;
+    return pickProbability(size_t(environmentEntry_)) * environment_.pdf(wi);
+}
+
+float LightSampler::pdfEnvironmentInGroup(const glm::vec3& wi) const {
+    if (environmentEntry_ < 0) return 0.0f;
+    return pickInGroup_[size_t(environmentEntry_)] * environment_.pdf(wi);
+}
+
 float LightSampler::pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight,
                                 const glm::vec3& nLight) const {
     int32_t i = entryOfTriangle_[triangle];
@@ -241,7 +270,7 @@ inline bool boxCanContribute(const glm::vec3& center, const glm::vec3& half, flo
 
 bool LightSampler::groupCanContribute(size_t g, const glm::vec3& p, const glm::vec3& ng) const {
     const Group& group = groups_[g];
-    if (group.directional) return true;
+    if (group.unbounded) return true;
     return boxCanContribute(group.center, group.half, group.diagonal, group.planar, group.normal, p, ng, rayOffset(p));
 }
 
@@ -250,7 +279,7 @@ uint64_t LightSampler::candidateGroups(const glm::vec3& p, const glm::vec3& ng) 
     uint64_t mask = 0;
     for (size_t g = 0; g < groups_.size(); ++g) {
         const Group& group = groups_[g];
-        if (group.directional ||
+        if (group.unbounded ||
             boxCanContribute(group.center, group.half, group.diagonal, group.planar, group.normal, p, ng, offset))
             mask |= uint64_t(1) << g;
     }
@@ -268,7 +297,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     };
     std::vector<std::pair<uint64_t, uint32_t>> keys;  // (material << 32 | vertex, entry)
     for (size_t i = 0; i < n; ++i) {
-        if (!lights_[i].triangle) continue;
+        if (!lights_[i].triangle()) continue;
         uint32_t t = lights_[i].index;
         uint64_t mat = scene_.mesh.materialIds[t];
         const glm::uvec3& tri = scene_.mesh.triangles[t];
@@ -295,11 +324,12 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     // centres along the axis where they spread most.
     auto entryCenter = [&](uint32_t i) -> glm::vec3 {
         const Entry& e = lights_[i];
-        if (e.triangle) {
+        if (e.triangle()) {
             const glm::uvec3& tri = scene_.mesh.triangles[e.index];
             const auto& P = scene_.mesh.positions;
             return (P[tri.x] + P[tri.y] + P[tri.z]) / 3.0f;
         }
+        if (e.kind == Entry::Kind::Environment) return scene_.bounds.center();
         const PunctualLight& l = scene_.lights[e.index];
         return l.type == PunctualLight::Type::Directional ? scene_.bounds.center() : l.position;
     };
@@ -351,7 +381,10 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
         for (uint32_t i : g.entries) {
             g.power += power[i];
             const Entry& e = lights_[i];
-            if (e.triangle) {
+            if (e.kind == Entry::Kind::Environment) {
+                planar = false;
+                g.unbounded = true;
+            } else if (e.triangle()) {
                 const glm::uvec3& tri = scene_.mesh.triangles[e.index];
                 for (uint32_t v : {tri.x, tri.y, tri.z}) b.extend(scene_.mesh.positions[v]);
                 glm::vec3 nt = scene_.mesh.geometricNormal(e.index);
@@ -362,7 +395,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
                 planar = false;
                 const PunctualLight& l = scene_.lights[e.index];
                 if (l.type == PunctualLight::Type::Directional)
-                    g.directional = true;
+                    g.unbounded = true;
                 else
                     b.extend(l.position);
             }
@@ -394,7 +427,7 @@ void LightSampler::detectParallelogram(Group& g, const std::vector<double>& powe
     // (a, b), whose other corners c and d satisfy c + d = a + b.
     if (g.entries.size() != 2 || !g.planar) return;
     const Entry &ea = lights_[g.entries[0]], &eb = lights_[g.entries[1]];
-    if (!ea.triangle || !eb.triangle) return;
+    if (!ea.triangle() || !eb.triangle()) return;
     const auto& mesh = scene_.mesh;
     if (mesh.materialIds[ea.index] != mesh.materialIds[eb.index]) return;
     if (scene_.materials[mesh.materialIds[ea.index]].emissiveTexture.valid()) return;

@@ -1,10 +1,10 @@
 // LightSampler: every light of the scene (emissive triangles as area lights, KHR_lights_punctual point,
-// spot and directional lights) in one list, picked in proportion to emitted power, for next event
+// spot and directional lights, the environment) in one list, picked in proportion to emitted power, for next event
 // estimation. Also answers the pdf of having sampled a given emitter point (for MIS).
 //
 // For light selection (uniform, learned) the entries are also grouped into *lights* as a user sees them:
 // the emissive triangles of one material that share vertices form one light (a quad, a lamp shade), each
-// punctual light is one. Beyond kMaxLightGroups lights, lights are merged into spatial clusters (repeated
+// punctual light is one, the environment is one. Beyond kMaxLightGroups lights, lights are merged into spatial clusters (repeated
 // median splits of the largest cluster along its longest axis). Within a group an entry is picked by power.
 #pragma once
 
@@ -13,13 +13,14 @@
 
 #include <glm/glm.hpp>
 
+#include "baker/render/environment_light.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
 
 struct LightSample {
     glm::vec3 wi{0.0f};  // unit direction from the shading point to the light
-    float distance = 0.0f;  // to the sampled point (infinity for directional lights)
+    float distance = 0.0f;  // to the sampled point (infinity for directional lights and the environment)
     glm::vec3 Li{0.0f};  // incident radiance (area) or irradiance-like term (delta lights) before 1/pdf
     float pdf = 0.0f;  // solid-angle pdf incl. the pick probability; for delta lights, the pick probability
     bool delta = false;
@@ -44,6 +45,13 @@ public:
     // triangle `triangle`, seen from p. Zero for triangles that are not lights.
     float pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
 
+    // Solid-angle pdf with which sample() produces direction wi towards the environment (zero without one).
+    float pdfEnvironment(const glm::vec3& wi) const;
+    // The same without the probability of the environment's group (for sampleGroup's MIS).
+    float pdfEnvironmentInGroup(const glm::vec3& wi) const;
+    // The environment's group, -1 if the scene has no active environment.
+    int32_t environmentGroup() const { return environmentEntry_ < 0 ? -1 : int32_t(groupOfEntry_[size_t(environmentEntry_)]); }
+
     // Probability of picking light entry i (for tests).
     float pickProbability(size_t i) const;
 
@@ -53,7 +61,8 @@ public:
     double groupPower(size_t g) const { return groups_[g].power; }
     // Group of emissive triangle `triangle`, -1 if it is not a light.
     int32_t groupOfTriangle(uint32_t triangle) const;
-    // Group of light entry i (entries: emissive triangles in index order, then punctual lights).
+    // Group of light entry i (entries: emissive triangles in index order, then punctual lights, then the
+    // environment).
     uint32_t groupOfEntry(size_t i) const { return groupOfEntry_[i]; }
     // Conservative test: can any point of group g send light to p, a point whose surface has geometric
     // normal ng (towards the side light may arrive from)? False only when the whole group lies behind the
@@ -81,7 +90,7 @@ private:
         glm::vec3 lower{0.0f}, upper{0.0f};  // bounds of every emitting point (area and positional lights)
         glm::vec3 center{0.0f}, half{0.0f};  // of that box
         float diagonal = 0.0f;
-        bool directional = false;  // holds a directional light: contributes wherever its direction allows
+        bool unbounded = false;  // holds a directional light or the environment: may contribute anywhere
         bool planar = false;  // one-sided triangles that share one normal (`normal`)
         glm::vec3 normal{0.0f};
         // Two triangles forming a parallelogram (a quad light): corner + u edgeU + v edgeV, u + v <= 1 in
@@ -90,12 +99,15 @@ private:
         glm::vec3 corner{0.0f}, edgeU{0.0f}, edgeV{0.0f};
     };
     struct Entry {
-        bool triangle;
-        uint32_t index;  // triangle index or index into Scene::lights
+        enum class Kind : uint8_t { Triangle, Punctual, Environment };
+        Kind kind;
+        uint32_t index;  // triangle index, index into Scene::lights, or 0 (the environment)
         float area;  // triangles only
+        bool triangle() const { return kind == Kind::Triangle; }
     };
     LightSample pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const;
     LightSample punctualSample(const Entry& e, float pick, const glm::vec3& p) const;
+    LightSample environmentSample(float pick, const glm::vec2& u) const;
     void detectParallelogram(Group& g, const std::vector<double>& power) const;
     // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
     LightSample sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
@@ -103,6 +115,8 @@ private:
     std::vector<Entry> lights_;
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1
     std::vector<int32_t> entryOfTriangle_;  // triangle -> entry, -1 if not emissive
+    EnvironmentSampler environment_;
+    int32_t environmentEntry_ = -1;
     double totalPower_ = 0.0;
     std::vector<Group> groups_;
     std::vector<uint32_t> groupOfEntry_;

@@ -56,6 +56,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             surfaces.clear();
             cosNV.clear();
             pixelOf.clear();
+            std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
                     uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
@@ -65,7 +66,11 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                         glm::vec3 o, d;
                         rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
                         Hit hit = accel.intersect(o, d);
-                        if (!hit.valid()) continue;
+                        if (!hit.valid()) {
+                            // The sky seen directly: the engine draws it, exactly, as it draws emission.
+                            sum[size_t((y - y0) * ts + (x - x0))] += glm::dvec3(scene.environment.radiance(d));
+                            continue;
+                        }
                         SurfaceInteraction si = makeInteraction(scene, hit, d);
                         for (int k = 0; k < 3; ++k) {
                             pos.push_back(si.p[k]);
@@ -84,7 +89,6 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             NradStatus st = n > 0 ? evaluate(n, pos.data(), nrm.data(), dir.data(), rgb.data(), flags.data()) : NRAD_OK;
             auto t2 = clock::now();
             if (st != NRAD_OK) failure = st;
-            std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (size_t i = 0; i < n; ++i) {
                 float L[3];
                 eval::shade(contentFlags, &rgb[3 * i], surfaces[i], cosNV[i], L);

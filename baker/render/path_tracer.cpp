@@ -44,7 +44,7 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
     origin = si.p;
     direction = ls.wi;
     tnear = si.spawnDistance(ls.wi);
-    if (!std::isfinite(ls.distance)) {  // directional light: the ray leaves the scene
+    if (!std::isfinite(ls.distance)) {  // directional light or environment: the ray leaves the scene
         tfar = std::numeric_limits<float>::infinity();
         return;
     }
@@ -62,7 +62,7 @@ glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& s
     ++counters.primary;
     if (record) record->push_back({origin, direction, 0.0f, std::numeric_limits<float>::infinity(), false});
     Hit hit = accel_.intersect(origin, direction);
-    if (!hit.valid()) return glm::vec3(0.0f);
+    if (!hit.valid()) return scene_.environment.radiance(direction);  // the sky seen directly
     return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record, nee);
 }
 
@@ -179,7 +179,21 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         ++counters.extension;
         if (record) record->push_back({si.p, bs.wi, tnear, std::numeric_limits<float>::infinity(), false});
         Hit hit = accel_.intersect(si.p, bs.wi, tnear);
-        if (!hit.valid()) break;
+        if (!hit.valid()) {
+            // The ray leaves the scene: the environment, weighted against having sampled it by NEE here.
+            glm::vec3 Le = scene_.environment.radiance(bs.wi);
+            if (!isBlack(Le)) {
+                float lightPdf;
+                if (selector_) {
+                    int32_t g = lights_.environmentGroup();
+                    lightPdf = g < 0 ? 0.0f : prevProbs[g] * lights_.pdfEnvironmentInGroup(bs.wi);
+                } else {
+                    lightPdf = lights_.pdfEnvironment(bs.wi);
+                }
+                L += beta * Le * powerHeuristic(prevBsdfPdf, lightPdf);
+            }
+            break;
+        }
         si = makeInteraction(scene_, hit, bs.wi);
     }
     return L;

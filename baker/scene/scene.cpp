@@ -1,6 +1,7 @@
 // Scene helpers: geometry queries, bounds and automatic camera framing.
 #include "baker/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace nrad {
@@ -22,10 +23,51 @@ void Scene::updateBounds() {
         if (l.type != PunctualLight::Type::Directional) bounds.extend(l.position);
 }
 
+glm::vec3 Scene::triangleEmission(size_t t) const {
+    const Material& m = materials[mesh.materialIds[t]];
+    if (!m.emissive()) return glm::vec3(0.0f);
+    if (!m.emissiveTexture.valid()) return m.emission;
+    const Texture& tex = textures[size_t(m.emissiveTexture.texture)];
+    const std::vector<glm::vec2>& uv = m.emissiveTexture.texCoord == 1 ? mesh.uv1 : mesh.uv0;
+    const glm::uvec3& tri = mesh.triangles[t];
+    const glm::vec2 a = uv[tri.x], b = uv[tri.y], c = uv[tri.z];
+    // Texels covered, and a lattice about as dense as them (a 99.9% black emissive texture must not make
+    // every triangle a light, nor a small bright spot be missed by one lookup at the centroid).
+    glm::vec2 e1 = (b - a) * glm::vec2(float(tex.width), float(tex.height));
+    glm::vec2 e2 = (c - a) * glm::vec2(float(tex.width), float(tex.height));
+    float texels = 0.5f * std::abs(e1.x * e2.y - e1.y * e2.x);
+    int n = std::isfinite(texels) ? std::clamp(int(std::ceil(std::sqrt(texels))), 1, 16) : 16;
+    // Centroids of the n^2 equal sub-triangles: (i + 1/3, j + 1/3) / n for i + j < n, (i + 2/3, j + 2/3) / n for
+    // i + j < n - 1.
+    glm::dvec3 sum(0.0);
+    int count = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; i + j < n; ++j)
+            for (int k = 0; k < 2; ++k) {
+                if (k == 1 && i + j >= n - 1) continue;
+                float off = k == 0 ? 1.0f / 3.0f : 2.0f / 3.0f;
+                float b1 = (float(i) + off) / float(n), b2 = (float(j) + off) / float(n);
+                glm::vec2 p = (1.0f - b1 - b2) * a + b1 * b + b2 * c;
+                sum += glm::dvec3(glm::vec3(tex.sample(p)));
+                ++count;
+            }
+    return m.emission * glm::vec3(sum / double(count));
+}
+
 size_t Scene::emissiveTriangleCount() const {
     size_t n = 0;
-    for (uint32_t m : mesh.materialIds) n += materials[m].emissive() ? 1 : 0;
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        glm::vec3 e = triangleEmission(t);
+        n += (e.x > 0.0f || e.y > 0.0f || e.z > 0.0f) && mesh.triangleArea(t) > 0.0f ? 1 : 0;
+    }
     return n;
+}
+
+bool Scene::hasLight() const {
+    if (environment.active() || emissiveTriangleCount() > 0) return true;
+    for (const PunctualLight& l : lights)
+        if (l.intensity.x > 0.0f || l.intensity.y > 0.0f || l.intensity.z > 0.0f) return true;
+    return false;
 }
 
 Camera frameBounds(const Bounds3& bounds, float yfov) {

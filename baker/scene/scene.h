@@ -9,6 +9,7 @@
 
 #include <glm/glm.hpp>
 
+#include "baker/scene/environment.h"
 #include "baker/scene/texture.h"
 
 namespace nrad {
@@ -110,12 +111,21 @@ struct Scene {
     std::vector<Texture> textures;
     std::vector<PunctualLight> lights;
     std::vector<Camera> cameras;
+    Environment environment;  // not from glTF: set by the commands (--environment, or the default sky)
     Bounds3 bounds;
     ImportStats stats;
 
     // Recomputes bounds from the mesh and the positional lights.
     void updateBounds();
+    // Triangles that emit light: positive emitted power (their emission averaged over their texture).
     size_t emissiveTriangleCount() const;
+    // The mean emitted radiance of triangle t (front side): the material's emission times its emissive texture
+    // averaged over the triangle's footprint in the texture (the centroids of n^2 equal sub-triangles,
+    // n = 1..16 growing with the texels the triangle covers). Zero for non-emissive materials.
+    glm::vec3 triangleEmission(size_t t) const;
+    // Whether anything lights the scene: an emitter of positive power, a punctual light of positive
+    // intensity, or an active environment.
+    bool hasLight() const;
 };
 
 // Builds a camera that frames the whole scene from +Z looking down -Z (used when the scene has none).
