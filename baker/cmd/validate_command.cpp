@@ -62,6 +62,12 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     }
     if (int code = applyEnvironmentForCommand("validate", cmd, o.environment, o.quiet, scene, metadata)) return code;
     if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
+    if (!scene.hasLight()) {
+        // Every image would be black and every ratio 0 / 0.
+        std::fprintf(stderr, "nrad validate: %s: nothing lights the scene (no emitter of positive power, no punctual light, "
+                             "no environment): there is no error to measure; give it an --environment\n", o.scene.c_str());
+        return kExitBadInput;
+    }
     ValidateSettings s;
     if (int code = chooseCameraForCommand("validate", scene, o.camera, o.quiet, s.camera)) return code;
     s.width = o.width;

@@ -227,6 +227,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     nlohmann::json j;
     j["scene"] = r.scenePath;
     j["asset"] = r.assetPath;
+    j["environment"] = r.environment;
     j["image"] = {{"width", r.width}, {"height", r.height}};
     j["settings"] = {{"reference_spp", s.referenceSpp}, {"max_depth", s.maxDepth}, {"neural_spp", s.neuralSpp},
                      {"curve_max_spp", s.curveMaxSpp}, {"seed", s.seed}, {"exposure", s.exposure}};
@@ -345,7 +346,7 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
          "td:first-child,th:first-child{text-align:left}.plots img{width:640px}p.summary{font-size:16px;max-width:1000px}</style>\n"
          "</head><body>\n";
     h << "<h1>nrad validation</h1>\n<p>Scene <code>" << escape(r.scenePath) << "</code>, asset <code>" << escape(r.assetPath) << "</code>, "
-      << r.width << "x" << r.height << " pixels. Reference: " << r.settings.referenceSpp << " paths per pixel, path length "
+      << r.width << "x" << r.height << " pixels, environment: " << escape(r.environment) << ". Reference: " << r.settings.referenceSpp << " paths per pixel, path length "
       << (r.settings.maxDepth ? std::to_string(r.settings.maxDepth) : std::string("unbounded")) << " ("
       << escape(r.referenceSource) << "). Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
     h << "<p class=\"summary\">" << escape(headlineSentence(r)) << "</p>\n";

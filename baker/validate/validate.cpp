@@ -232,6 +232,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     ValidationResult r;
     r.scenePath = scenePath;
     r.assetPath = assetPath;
+    r.environment = scene.environment.describe();
     r.settings = settings;
     const Camera& camera = settings.camera;
     float aspect = camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f;

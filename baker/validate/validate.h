@@ -96,6 +96,7 @@ SeamFigure seamFigure(const FirstHits& hits, const format::Grid& grid, NradAsset
 
 struct ValidationResult {
     std::string scenePath, assetPath;
+    std::string environment;  // Environment::describe() of the lighting validated under
     int width = 0, height = 0;
     Image reference;
     std::string referenceSource;  // "rendered", "cache", or the given file

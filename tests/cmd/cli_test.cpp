@@ -362,3 +362,81 @@ TEST(CliRender, LearnedLightSelectionWritesTheImageAndTheChosenLights) {
 
 }  // namespace
 }  // namespace nrad
+
+namespace nrad {
+namespace {
+
+std::string boxScene() { return "'" + test::externalScene("BoxDraco/glTF-Draco/Box.gltf") + "'"; }
+
+// A scene without light of its own (Khronos' Box) renders under the default sky, says so, and records it;
+// --environment none says nothing lights it; bad environment values exit with their codes.
+TEST(CliEnvironment, UnlitSceneGetsTheDefaultSkyAndBadValuesAreRefused) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("render " + boxScene() + " -o '" + dir + "/sky.exr' --spp 16 --width 32");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("has no light of its own: lit by the default sky"), std::string::npos) << r.output;
+    Image sky = readExr(dir + "/sky.exr");
+    EXPECT_GT(sky.mean().y, 0.3) << "the default sky must light an unlit scene";
+    r = run("render " + boxScene() + " -o '" + dir + "/none.exr' --spp 4 --width 32 --environment none");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("nothing lights the scene"), std::string::npos) << r.output;
+    EXPECT_EQ(readExr(dir + "/none.exr").mean(), glm::dvec3(0.0));
+    // A constant colour is seen directly by camera rays that miss: the corners.
+    r = run("render " + boxScene() + " -o '" + dir + "/c.exr' --spp 4 --width 32 --environment 0.25,0.5,1 "
+            "--environment-intensity 2 -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_EQ(readExr(dir + "/c.exr").at(0, 0), glm::vec3(0.5f, 1.0f, 2.0f));
+
+    struct Bad {
+        std::string flags;
+        int code;
+        std::string message;
+    };
+    for (const Bad& b : {Bad{"--environment 1,2", 3, "1,2: no such environment map"},
+                         Bad{"--environment 1,-1,1", 3, "expected three finite values >= 0"},
+                         Bad{"--environment '" + dir + "/sky.png'", 3, "no such environment map"},
+                         Bad{"--environment-intensity 2", 2, "need --environment"},
+                         Bad{"--environment 1,1,1 --environment-intensity -1", 2, "--environment-intensity"}}) {
+        std::string out = dir + "/bad.exr";
+        RunResult bad = run("render " + boxScene() + " -o '" + out + "' --spp 1 --width 8 " + b.flags);
+        EXPECT_EQ(bad.exitCode, b.code) << b.flags << ": " << bad.output;
+        EXPECT_NE(bad.output.find(b.message), std::string::npos) << b.flags << ": " << bad.output;
+        EXPECT_FALSE(fs::exists(out)) << b.flags;
+    }
+}
+
+// A convex box under a uniform sky of radiance 1 reflects exactly its albedo: the environment-lit asset
+// agrees with its reference within a small relMSE, the asset records the sky, render --asset and validate use
+// what it recorded, and refuse (exit 3, nothing written) an asset baked under other lighting unless --force.
+TEST(CliEnvironment, SkyLitBakeAgreesWithItsReferenceAndAssetsKnowTheirLighting) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("bake " + boxScene() + " -o '" + dir + "/box.nrad' --grid 2 --points 4000 --paths 16 -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    RunResult info = run("info '" + dir + "/box.nrad'");
+    EXPECT_NE(info.output.find("\"environment\":{\"color\":[1.0,1.0,1.0],\"default\":true"), std::string::npos) << info.output;
+    r = run("validate " + boxScene() + " '" + dir + "/box.nrad' -o '" + dir + "/report' --width 48 --reference-spp 64 "
+            "--curve-max-spp 4 --no-baseline --no-cache");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("as the asset recorded"), std::string::npos) << r.output;
+    std::ifstream f(dir + "/report/report.json");
+    nlohmann::json report = nlohmann::json::parse(f);
+    const double relMse = report["neural"]["metrics"]["relmse"].get<double>();
+    std::printf("sky-lit box: asset relMSE %.3g\n", relMse);
+    EXPECT_LT(relMse, 0.002);
+
+    r = run("render " + boxScene() + " --asset '" + dir + "/box.nrad' -o '" + dir + "/other.exr' --spp 1 --width 16 "
+            "--environment 0.5,0.5,0.5");
+    EXPECT_EQ(r.exitCode, 3) << r.output;
+    EXPECT_NE(r.output.find("was baked from another scene or lighting"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/other.exr"));
+    r = run("validate " + cornell() + " '" + dir + "/box.nrad' -o '" + dir + "/wrong' --width 16 --no-cache -q");
+    EXPECT_EQ(r.exitCode, 3) << r.output;
+    EXPECT_NE(r.output.find("was baked from another scene or lighting"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/wrong"));
+    r = run("render " + boxScene() + " --asset '" + dir + "/box.nrad' -o '" + dir + "/other.exr' --spp 1 --width 16 "
+            "--environment 0.5,0.5,0.5 --force -q");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+}
+
+}  // namespace
+}  // namespace nrad
