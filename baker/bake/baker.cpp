@@ -74,7 +74,7 @@ static nlohmann::json environmentMetadata(const Environment& e) {
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
     BakeResult result;
     auto t0 = std::chrono::steady_clock::now();
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     NeeSettings nee = settings.nee;
     nee.seed ^= settings.samples.seed;

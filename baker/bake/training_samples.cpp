@@ -135,6 +135,12 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
             const SurfacePiece& piece = pieces.pieces()[r.piece];
             glm::vec3 p, wo;
             SurfaceInteraction si = startOf(r, p, wo);
+            // A point in an alpha cutout's hole is no surface: dropped (counted in droppedSamples).
+            if (si.material && si.material->alphaMode == Material::AlphaMode::Mask) {
+                float b1, b2;
+                pieces.samplePiece(piece, r.uPoint, b1, b2);
+                if (surfaceOpacity(scene, piece.triangle, b1, b2) <= 0.0f) continue;
+            }
             glm::dvec3 sum(0.0);
             uint32_t finite = 0;
             for (uint32_t j = 0; j < settings.paths; ++j) {

@@ -113,7 +113,7 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
     settings.width = o.width > 0 ? o.width : (o.height > 0 ? std::max(1, int(std::lround(o.height * aspect))) : 512);
     settings.height = o.height > 0 ? o.height : std::max(1, int(std::lround(settings.width / aspect)));
 
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     if (!o.chosenLight.empty() && !isSupportedImagePath(o.chosenLight)) {
         std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", o.chosenLight.c_str());
         return kExitUsage;

@@ -1,10 +1,13 @@
 // Embree 3 scene for the flattened triangle mesh.
 #include "baker/render/accel.h"
 
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
 #include <embree3/rtcore.h>
+
+#include "baker/render/surface.h"
 
 namespace nrad {
 
@@ -39,9 +42,52 @@ inline void initRay(RTCRay& ray, const glm::vec3& o, const glm::vec3& d, float t
     ray.flags = 0;
 }
 
+// Coverage of alpha-tested and blended materials (both filter kinds; N = 1 for the queries we issue, but
+// every lane is handled).
+void coverageFilter(const RTCFilterFunctionNArguments* args) {
+    const auto* scene = static_cast<const Scene*>(args->geometryUserPtr);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] != -1) continue;
+        const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+        const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
+        const float a = surfaceOpacity(*scene, prim, u, v);
+        if (a >= 1.0f) continue;
+        if (!(a > 0.0f)) {
+            args->valid[i] = 0;
+            continue;
+        }
+        // Stochastic coverage: a hash of the ray (origin, direction) and the triangle, uniform in [0, 1).
+        float f[6] = {RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
+                      RTCRayN_org_z(args->ray, args->N, i), RTCRayN_dir_x(args->ray, args->N, i),
+                      RTCRayN_dir_y(args->ray, args->N, i), RTCRayN_dir_z(args->ray, args->N, i)};
+        uint64_t h = 0xcbf29ce484222325ull ^ prim;
+        for (float x : f) {
+            uint32_t b;
+            std::memcpy(&b, &x, 4);
+            h = (h ^ b) * 0x100000001b3ull;
+            h ^= h >> 29;
+        }
+        h *= 0xbf58476d1ce4e5b9ull;
+        h ^= h >> 32;
+        if (float(uint32_t(h) >> 8) * 0x1p-24f >= a) args->valid[i] = 0;
+    }
+}
+
+bool needsCoverage(const Scene& scene) {
+    for (const Material& m : scene.materials)
+        if (m.alphaMode != Material::AlphaMode::Opaque) return true;
+    return false;
+}
+
 }  // namespace
 
-Accel::Accel(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+Accel::Accel(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) { build(mesh, nullptr); }
+
+Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
+    build(scene.mesh, needsCoverage(scene) ? &scene : nullptr);
+}
+
+void Accel::build(const TriangleMesh& mesh, const Scene* coverage) {
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtcSetDeviceErrorFunction(impl_->device, errorCallback, nullptr);
@@ -66,6 +112,11 @@ Accel::Accel(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
             indices[3 * t + 0] = mesh.triangles[t].x;
             indices[3 * t + 1] = mesh.triangles[t].y;
             indices[3 * t + 2] = mesh.triangles[t].z;
+        }
+        if (coverage) {
+            rtcSetGeometryUserData(geom, const_cast<Scene*>(coverage));
+            rtcSetGeometryIntersectFilterFunction(geom, coverageFilter);
+            rtcSetGeometryOccludedFilterFunction(geom, coverageFilter);
         }
         rtcCommitGeometry(geom);
         rtcAttachGeometryByID(impl_->scene, geom, 0);

@@ -31,7 +31,13 @@ struct RecordedRay {
 
 class Accel {
 public:
+    // Every triangle opaque.
     explicit Accel(const TriangleMesh& mesh);
+    // The scene's triangles with their materials' coverage: an Embree filter drops hits where a MASK
+    // material's alpha is below its cutoff (light passes through the holes) and, for BLEND, with probability
+    // 1 - alpha (a hash of the ray and the triangle decides, so a query is deterministic). Scenes without
+    // such materials get no filter. The scene must outlive the Accel.
+    explicit Accel(const Scene& scene);
     ~Accel();
     Accel(const Accel&) = delete;
     Accel& operator=(const Accel&) = delete;
@@ -47,6 +53,7 @@ public:
     size_t traceRaw(const RecordedRay* rays, size_t count) const;
 
 private:
+    void build(const TriangleMesh& mesh, const Scene* coverage);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

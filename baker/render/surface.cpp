@@ -17,7 +17,35 @@ glm::vec2 texCoord(const TriangleMesh& mesh, const glm::uvec3& tri, float b0, fl
 glm::vec4 lookup(const Scene& scene, const TextureRef& ref, const TriangleMesh& mesh, const glm::uvec3& tri, float b0,
                  float b1, float b2) {
     if (!ref.valid()) return glm::vec4(1.0f);
-    return scene.textures[size_t(ref.texture)].sample(texCoord(mesh, tri, b0, b1, b2, ref.texCoord));
+    return scene.textures[size_t(ref.texture)].sample(ref.apply(texCoord(mesh, tri, b0, b1, b2, ref.texCoord)));
+}
+
+glm::vec4 vertexColor(const TriangleMesh& mesh, const glm::uvec3& tri, float b0, float b1, float b2) {
+    if (mesh.colors.empty()) return glm::vec4(1.0f);
+    return b0 * mesh.colors[tri.x] + b1 * mesh.colors[tri.y] + b2 * mesh.colors[tri.z];
+}
+
+// The shading normal perturbed by the material's tangent-space normal map (glTF: n = normalize(T x + B y + N z),
+// x and y scaled by normalScale, B = w cross(N, T)). N is the interpolated vertex normal on the winding side;
+// returns N unchanged where the triangle has no tangent frame.
+glm::vec3 normalMapped(const Scene& scene, const Material& m, const glm::uvec3& tri, float b0, float b1, float b2,
+                       const glm::vec3& N) {
+    const TriangleMesh& mesh = scene.mesh;
+    if (!m.normalTexture.valid() || mesh.tangents.empty()) return N;
+    glm::vec4 t4 = b0 * mesh.tangents[tri.x] + b1 * mesh.tangents[tri.y] + b2 * mesh.tangents[tri.z];
+    glm::vec3 T = glm::vec3(t4) - glm::dot(glm::vec3(t4), N) * N;  // Gram-Schmidt against the interpolated normal
+    float len = glm::length(T);
+    if (!(len > 1e-6f) || !std::isfinite(len)) return N;
+    T /= len;
+    const float w = mesh.tangents[tri.x].w < 0.0f ? -1.0f : 1.0f;
+    glm::vec3 B = w * glm::cross(N, T);
+    glm::vec4 c = lookup(scene, m.normalTexture, mesh, tri, b0, b1, b2);
+    glm::vec3 t(2.0f * c.x - 1.0f, 2.0f * c.y - 1.0f, 2.0f * c.z - 1.0f);
+    t.x *= m.normalScale;
+    t.y *= m.normalScale;
+    glm::vec3 n = t.x * T + t.y * B + t.z * N;
+    float nl = glm::length(n);
+    return nl > 1e-6f && std::isfinite(nl) ? n / nl : N;
 }
 
 }  // namespace
@@ -48,6 +76,18 @@ glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float 
     return e;
 }
 
+float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v) {
+    const Material& m = scene.materials[scene.mesh.materialIds[triangle]];
+    if (m.alphaMode == Material::AlphaMode::Opaque) return 1.0f;
+    const glm::uvec3& tri = scene.mesh.triangles[triangle];
+    float b0 = 1.0f - u - v;
+    float a = m.alpha * vertexColor(scene.mesh, tri, b0, u, v).w;
+    if (m.baseColorTexture.valid()) a *= lookup(scene, m.baseColorTexture, scene.mesh, tri, b0, u, v).w;
+    a = std::clamp(a, 0.0f, 1.0f);
+    if (m.alphaMode == Material::AlphaMode::Mask) return a >= m.alphaCutoff ? 1.0f : 0.0f;
+    return a;
+}
+
 eval::Surface shadingSurface(const SurfaceInteraction& si) {
     eval::Surface s;
     for (int c = 0; c < 3; ++c) {
@@ -73,6 +113,8 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     float nsLen = glm::length(ns);
     ns = (nsLen > 1e-6f && std::isfinite(nsLen)) ? ns / nsLen : ng;
     if (glm::dot(ns, ng) < 0.0f) ns = -ns;  // vertex normals on the winding side
+    const Material& m = scene.materials[mesh.materialIds[hit.triangle]];
+    ns = normalMapped(scene, m, tri, b0, b1, b2, ns);
     si.frontFace = glm::dot(ng, si.wo) >= 0.0f;
     if (!si.frontFace) {
         ng = -ng;
@@ -82,7 +124,6 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.ng = ng;
     si.ns = ns;
 
-    const Material& m = scene.materials[mesh.materialIds[hit.triangle]];
     si.material = &m;
     si.bsdf.baseColor = m.baseColor;
     si.bsdf.metallic = m.metallic;
@@ -91,6 +132,7 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.bsdf.specularColor = m.specularColor;
     si.bsdf.ior = m.ior;
     if (m.baseColorTexture.valid()) si.bsdf.baseColor *= glm::vec3(lookup(scene, m.baseColorTexture, mesh, tri, b0, b1, b2));
+    if (!mesh.colors.empty()) si.bsdf.baseColor *= glm::vec3(vertexColor(mesh, tri, b0, b1, b2));
     if (m.metallicRoughnessTexture.valid()) {
         glm::vec4 mr = lookup(scene, m.metallicRoughnessTexture, mesh, tri, b0, b1, b2);
         si.bsdf.roughness *= mr.y;

@@ -33,6 +33,11 @@ struct SurfaceInteraction {
 // Emitted radiance of a triangle at barycentrics (u, v), seen from a direction on the side `front`.
 glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front);
 
+// Coverage of triangle `triangle` at barycentrics (u, v): 1 for opaque materials; for MASK 1 or 0 (alpha
+// against the cutoff); for BLEND alpha itself, the probability that a ray stops there. Alpha is the
+// base colour factor's times the base colour texture's times COLOR_0's.
+float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v);
+
 // The material terms of the evaluation contract (nrad/eval.h) at an interaction: what an engine's G-buffer
 // holds there.
 eval::Surface shadingSurface(const SurfaceInteraction& si);

@@ -27,7 +27,7 @@ constexpr int kMaxNodeDepth = 1024;
 const std::set<std::string>& supportedExtensions() {
     static const std::set<std::string> s = {
         "KHR_draco_mesh_compression", "KHR_materials_emissive_strength", "KHR_lights_punctual",
-        "KHR_materials_specular", "KHR_mesh_quantization"};
+        "KHR_materials_specular", "KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_ior"};
     return s;
 }
 
@@ -108,6 +108,34 @@ private:
         return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
     }
 
+    // KHR_texture_transform of a texture slot (its texCoord override included).
+    TextureRef transformed(TextureRef ref, const tinygltf::ExtensionMap& extensions, const std::string& where) {
+        auto it = extensions.find("KHR_texture_transform");
+        if (!ref.valid() || it == extensions.end()) return ref;
+        const tinygltf::Value& t = it->second;
+        auto pair = [&](const char* key, glm::vec2 fallback) {
+            if (!t.Has(key)) return fallback;
+            const tinygltf::Value& v = t.Get(key);
+            if (!v.IsArray() || v.ArrayLen() != 2 || !v.Get(0).IsNumber() || !v.Get(1).IsNumber())
+                fail(where + ": KHR_texture_transform " + key + " must be two numbers");
+            return glm::vec2(float(v.Get(0).GetNumberAsDouble()), float(v.Get(1).GetNumberAsDouble()));
+        };
+        ref.offset = pair("offset", glm::vec2(0.0f));
+        ref.scale = pair("scale", glm::vec2(1.0f));
+        ref.rotation = float(number(t, "rotation", 0.0));
+        if (!std::isfinite(ref.offset.x) || !std::isfinite(ref.offset.y) || !std::isfinite(ref.scale.x) ||
+            !std::isfinite(ref.scale.y) || !std::isfinite(ref.rotation))
+            fail(where + ": KHR_texture_transform has a non-finite value");
+        if (t.Has("texCoord")) {
+            int tc = int(number(t, "texCoord", 0.0));
+            if (tc == 0 || tc == 1)
+                ref.texCoord = tc;
+            else
+                warn(where + ": KHR_texture_transform texCoord " + std::to_string(tc) + " is not read; using " + std::to_string(ref.texCoord));
+        }
+        return ref;
+    }
+
     TextureRef textureRef(int textureIndex, int texCoord, bool srgb, const std::string& where) {
         if (textureIndex < 0) return {};
         if (size_t(textureIndex) >= model_.textures.size())
@@ -179,17 +207,34 @@ private:
             const auto& pbr = gm.pbrMetallicRoughness;
             if (pbr.baseColorFactor.size() >= 3)
                 m.baseColor = glm::vec3(pbr.baseColorFactor[0], pbr.baseColorFactor[1], pbr.baseColorFactor[2]);
-            m.baseColorTexture = textureRef(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, true, where);
+            m.baseColorTexture = transformed(textureRef(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, true, where),
+                                             pbr.baseColorTexture.extensions, where);
+            if (pbr.baseColorFactor.size() >= 4) m.alpha = float(pbr.baseColorFactor[3]);
+            if (gm.alphaMode == "MASK")
+                m.alphaMode = Material::AlphaMode::Mask;
+            else if (gm.alphaMode == "BLEND")
+                m.alphaMode = Material::AlphaMode::Blend;
+            else if (gm.alphaMode != "OPAQUE" && !gm.alphaMode.empty())
+                fail(where + ": alphaMode '" + gm.alphaMode + "' is not OPAQUE, MASK or BLEND");
+            m.alphaCutoff = float(gm.alphaCutoff);
+            if (!std::isfinite(m.alpha) || !std::isfinite(m.alphaCutoff)) fail(where + " has a non-finite alpha or alphaCutoff");
+            m.alpha = std::clamp(m.alpha, 0.0f, 1.0f);
+            m.normalTexture = transformed(textureRef(gm.normalTexture.index, gm.normalTexture.texCoord, false, where),
+                                          gm.normalTexture.extensions, where);
+            m.normalScale = float(gm.normalTexture.scale);
+            if (!std::isfinite(m.normalScale)) fail(where + " has a non-finite normalTexture scale");
             m.metallic = float(pbr.metallicFactor);
             m.roughness = float(pbr.roughnessFactor);
-            m.metallicRoughnessTexture = textureRef(pbr.metallicRoughnessTexture.index,
-                                                    pbr.metallicRoughnessTexture.texCoord, false, where);
+            m.metallicRoughnessTexture = transformed(textureRef(pbr.metallicRoughnessTexture.index,
+                                                                pbr.metallicRoughnessTexture.texCoord, false, where),
+                                                     pbr.metallicRoughnessTexture.extensions, where);
             float strength = 1.0f;
             auto es = gm.extensions.find("KHR_materials_emissive_strength");
             if (es != gm.extensions.end()) strength = float(number(es->second, "emissiveStrength", 1.0));
             if (gm.emissiveFactor.size() >= 3)
                 m.emission = strength * glm::vec3(gm.emissiveFactor[0], gm.emissiveFactor[1], gm.emissiveFactor[2]);
-            m.emissiveTexture = textureRef(gm.emissiveTexture.index, gm.emissiveTexture.texCoord, true, where);
+            m.emissiveTexture = transformed(textureRef(gm.emissiveTexture.index, gm.emissiveTexture.texCoord, true, where),
+                                            gm.emissiveTexture.extensions, where);
             auto sp = gm.extensions.find("KHR_materials_specular");
             if (sp != gm.extensions.end()) {
                 m.specular = float(number(sp->second, "specularFactor", 1.0));
@@ -204,10 +249,6 @@ private:
             auto ior = gm.extensions.find("KHR_materials_ior");
             if (ior != gm.extensions.end()) m.ior = float(number(ior->second, "ior", 1.5));
             m.doubleSided = gm.doubleSided;
-            if (gm.normalTexture.index >= 0 && !warnedNormalMaps_) {
-                warn("normal textures are ignored (interpolated vertex normals are used)");
-                warnedNormalMaps_ = true;
-            }
             if (!finite3(m.baseColor) || !finite3(m.emission) || !std::isfinite(m.metallic) ||
                 !std::isfinite(m.roughness) || !std::isfinite(m.specular) || !finite3(m.specularColor))
                 fail(where + " has a non-finite factor");
@@ -429,6 +470,24 @@ private:
             if (uv1.size() / 2 != vertexCount) fail(where + ": TEXCOORD_1 and POSITION counts differ");
         }
 
+        std::vector<double> col, tan;
+        int colComponents = 0;
+        if (attr("COLOR_0") >= 0) {
+            colComponents = tinygltf::GetNumComponentsInType(uint32_t(accessor(attr("COLOR_0"), where + " COLOR_0").type));
+            if (colComponents != 3 && colComponents != 4) fail(where + ": COLOR_0 must be VEC3 or VEC4");
+            col = readAccessor(attr("COLOR_0"), colComponents, where + " COLOR_0");
+            if (col.size() / size_t(colComponents) != vertexCount) fail(where + ": COLOR_0 and POSITION counts differ");
+            for (double c : col)
+                if (!std::isfinite(c)) fail(where + ": COLOR_0 has a non-finite value");
+        }
+        const uint32_t material = uint32_t(materialIndexFor(prim.material));
+        const Material& mat = scene_.materials[material];
+        const bool normalMapped = mat.normalTexture.valid();
+        if (normalMapped && attr("TANGENT") >= 0) {
+            tan = readAccessor(attr("TANGENT"), 4, where + " TANGENT");
+            if (tan.size() / 4 != vertexCount) fail(where + ": TANGENT and POSITION counts differ");
+        }
+
         // Vertex indices of the primitive's triangles.
         std::vector<uint32_t> idx;
         if (prim.indices >= 0) {
@@ -478,20 +537,86 @@ private:
             }
         }
 
-        uint32_t material = uint32_t(materialIndexFor(prim.material));
         TriangleMesh& out = scene_.mesh;
         bool flat = nrm.empty();
         if (flat) ++scene_.stats.primitivesWithGeneratedNormals;
+
+        // Tangent frames for normal maps: TANGENT (world space, w flipped with the winding), else generated from
+        // the normal texture's coordinates (per-vertex sums of the triangles' dp/du, the bitangent sign from
+        // dp/dv; +Y of the map towards -v, as glTF defines it).
+        std::vector<glm::vec4> wt;
+        if (normalMapped) {
+            wt.assign(vertexCount, glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+            if (!tan.empty()) {
+                glm::dmat3 m3(world);
+                for (size_t v = 0; v < vertexCount; ++v) {
+                    glm::dvec3 t = m3 * glm::dvec3(tan[4 * v], tan[4 * v + 1], tan[4 * v + 2]);
+                    double len = glm::length(t);
+                    double w = (tan[4 * v + 3] < 0.0 ? -1.0 : 1.0) * (flipWinding ? -1.0 : 1.0);
+                    wt[v] = std::isfinite(len) && len > 0.0 ? glm::vec4(glm::vec3(t / len), float(w)) : glm::vec4(0, 0, 0, 1);
+                }
+            } else {
+                ++scene_.stats.primitivesWithGeneratedTangents;
+            }
+        }
+        const std::vector<double>& tuv = mat.normalTexture.texCoord == 1 ? uv1 : uv0;
+        auto uvOf = [&](uint32_t v) {
+            return tuv.empty() ? glm::vec2(0.0f) : mat.normalTexture.apply(glm::vec2(tuv[2 * v], tuv[2 * v + 1]));
+        };
+        // dp/du and dp/dv of triangle t (zero for a degenerate mapping).
+        auto triangleTangents = [&](const glm::uvec3& t, glm::vec3& dpdu, glm::vec3& dpdv) {
+            glm::vec3 e1 = wp[t.y] - wp[t.x], e2 = wp[t.z] - wp[t.x];
+            glm::vec2 d1 = uvOf(t.y) - uvOf(t.x), d2 = uvOf(t.z) - uvOf(t.x);
+            float det = d1.x * d2.y - d2.x * d1.y;
+            if (!(std::abs(det) > 1e-20f) || !std::isfinite(det)) {
+                dpdu = dpdv = glm::vec3(0.0f);
+                return;
+            }
+            float r = 1.0f / det;
+            dpdu = (e1 * d2.y - e2 * d1.y) * r;
+            dpdv = (e2 * d1.x - e1 * d2.x) * r;
+        };
+        auto frame = [](const glm::vec3& n, const glm::vec3& dpdu, const glm::vec3& dpdv) {
+            glm::vec3 t = dpdu - glm::dot(n, dpdu) * n;
+            float len = glm::length(t);
+            if (!(len > 0.0f) || !std::isfinite(len)) return glm::vec4(0, 0, 0, 1);
+            t /= len;
+            return glm::vec4(t, glm::dot(glm::cross(n, t), -dpdv) < 0.0f ? -1.0f : 1.0f);
+        };
+        if (normalMapped && tan.empty() && !flat) {
+            std::vector<glm::vec3> su(vertexCount, glm::vec3(0.0f)), sv(vertexCount, glm::vec3(0.0f));
+            for (glm::uvec3 t : tris) {
+                if (flipWinding) std::swap(t.y, t.z);
+                glm::vec3 dpdu, dpdv;
+                triangleTangents(t, dpdu, dpdv);
+                for (uint32_t v : {t.x, t.y, t.z}) {
+                    su[v] += dpdu;
+                    sv[v] += dpdv;
+                }
+            }
+            for (size_t v = 0; v < vertexCount; ++v) wt[v] = frame(wn[v], su[v], sv[v]);
+        }
+        // Optional attributes present in the mesh (backfilled with defaults when this is the first primitive).
+        const bool withColors = !col.empty() || !out.colors.empty(), withTangents = normalMapped || !out.tangents.empty();
+        if (withColors) out.colors.resize(out.positions.size(), glm::vec4(1.0f));
+        if (withTangents) out.tangents.resize(out.positions.size(), glm::vec4(0, 0, 0, 1));
         // Vertices are emitted per primitive instance; flat-shaded primitives get unshared vertices.
         uint32_t base = uint32_t(out.positions.size());
-        auto pushVertex = [&](uint32_t v, const glm::vec3& normal) {
+        auto pushVertex = [&](uint32_t v, const glm::vec3& normal, const glm::vec4& tangent) {
             out.positions.push_back(wp[v]);
             out.normals.push_back(normal);
             out.uv0.push_back(uv0.empty() ? glm::vec2(0.0f) : glm::vec2(uv0[2 * v], uv0[2 * v + 1]));
             out.uv1.push_back(uv1.empty() ? glm::vec2(0.0f) : glm::vec2(uv1[2 * v], uv1[2 * v + 1]));
+            if (withColors) {
+                glm::vec4 c(1.0f);
+                if (!col.empty())
+                    for (int k = 0; k < colComponents; ++k) c[k] = float(col[size_t(colComponents) * v + size_t(k)]);
+                out.colors.push_back(glm::clamp(c, 0.0f, 1.0f));
+            }
+            if (withTangents) out.tangents.push_back(tangent);
         };
         if (!flat)
-            for (size_t v = 0; v < vertexCount; ++v) pushVertex(uint32_t(v), wn[v]);
+            for (size_t v = 0; v < vertexCount; ++v) pushVertex(uint32_t(v), wn[v], normalMapped ? wt[v] : glm::vec4(0, 0, 0, 1));
         for (glm::uvec3 t : tris) {
             if (flipWinding) std::swap(t.y, t.z);
             glm::vec3 e1 = wp[t.y] - wp[t.x], e2 = wp[t.z] - wp[t.x];
@@ -503,10 +628,18 @@ private:
             }
             if (flat) {
                 glm::vec3 n = c / len;
+                glm::vec4 tg[3] = {glm::vec4(0, 0, 0, 1), glm::vec4(0, 0, 0, 1), glm::vec4(0, 0, 0, 1)};
+                if (normalMapped && tan.empty()) {
+                    glm::vec3 dpdu, dpdv;
+                    triangleTangents(t, dpdu, dpdv);
+                    tg[0] = tg[1] = tg[2] = frame(n, dpdu, dpdv);
+                } else if (normalMapped) {
+                    tg[0] = wt[t.x], tg[1] = wt[t.y], tg[2] = wt[t.z];
+                }
                 uint32_t first = uint32_t(out.positions.size());
-                pushVertex(t.x, n);
-                pushVertex(t.y, n);
-                pushVertex(t.z, n);
+                pushVertex(t.x, n, tg[0]);
+                pushVertex(t.y, n, tg[1]);
+                pushVertex(t.z, n, tg[2]);
                 out.triangles.emplace_back(first, first + 1, first + 2);
             } else {
                 out.triangles.emplace_back(base + t.x, base + t.y, base + t.z);
@@ -520,7 +653,6 @@ private:
     Scene& scene_;
     std::map<std::pair<int, bool>, int> textureCache_;
     int defaultMaterial_ = -1;
-    bool warnedNormalMaps_ = false;
 };
 
 bool hasGlbMagic(const std::string& path) {

@@ -6,6 +6,13 @@
 
 namespace nrad {
 
+glm::vec2 TextureRef::apply(glm::vec2 uv) const {
+    if (!transformed()) return uv;
+    glm::vec2 s = scale * uv;
+    float c = std::cos(rotation), r = std::sin(rotation);
+    return offset + glm::vec2(c * s.x + r * s.y, -r * s.x + c * s.y);
+}
+
 float TriangleMesh::triangleArea(size_t t) const {
     const glm::uvec3& tri = triangles[t];
     return 0.5f * glm::length(glm::cross(positions[tri.y] - positions[tri.x], positions[tri.z] - positions[tri.x]));
@@ -30,7 +37,8 @@ glm::vec3 Scene::triangleEmission(size_t t) const {
     const Texture& tex = textures[size_t(m.emissiveTexture.texture)];
     const std::vector<glm::vec2>& uv = m.emissiveTexture.texCoord == 1 ? mesh.uv1 : mesh.uv0;
     const glm::uvec3& tri = mesh.triangles[t];
-    const glm::vec2 a = uv[tri.x], b = uv[tri.y], c = uv[tri.z];
+    const TextureRef& ref = m.emissiveTexture;
+    const glm::vec2 a = ref.apply(uv[tri.x]), b = ref.apply(uv[tri.y]), c = ref.apply(uv[tri.z]);
     // Texels covered, and a lattice about as dense as them (a 99.9% black emissive texture must not make
     // every triangle a light, nor a small bright spot be missed by one lookup at the centroid).
     glm::vec2 e1 = (b - a) * glm::vec2(float(tex.width), float(tex.height));

@@ -29,11 +29,17 @@ struct Bounds3 {
     float radius() const { return empty() ? 0.0f : 0.5f * glm::length(extent()); }
 };
 
-// A reference to a texture from a material slot, with the UV set it reads.
+// A reference to a texture from a material slot, with the UV set it reads and its KHR_texture_transform
+// (uv' = offset + R(rotation) (scale * uv), R = [cos sin; -sin cos] as the extension defines it).
 struct TextureRef {
     int texture = -1;  // index into Scene::textures, -1 = none
     int texCoord = 0;  // 0 or 1
+    glm::vec2 offset{0.0f};
+    float rotation = 0.0f;  // radians
+    glm::vec2 scale{1.0f};
     bool valid() const { return texture >= 0; }
+    bool transformed() const { return offset != glm::vec2(0.0f) || rotation != 0.0f || scale != glm::vec2(1.0f); }
+    glm::vec2 apply(glm::vec2 uv) const;
 };
 
 // glTF 2.0 metallic-roughness material (plus KHR_materials_emissive_strength and KHR_materials_specular).
@@ -50,6 +56,14 @@ struct Material {
     glm::vec3 specularColor{1.0f};  // KHR_materials_specular specularColorFactor
     float ior = 1.5f;
     bool doubleSided = false;
+    TextureRef normalTexture;  // tangent space, linear
+    float normalScale = 1.0f;
+    // Coverage: OPAQUE ignores alpha; MASK cuts out where alpha < alphaCutoff (light passes through the holes);
+    // BLEND is stochastic coverage (a ray passes with probability 1 - alpha; docs/rendering.md).
+    enum class AlphaMode { Opaque, Mask, Blend };
+    AlphaMode alphaMode = AlphaMode::Opaque;
+    float alpha = 1.0f;  // baseColorFactor's fourth component
+    float alphaCutoff = 0.5f;
 
     bool emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
 };
@@ -83,6 +97,10 @@ struct TriangleMesh {
     std::vector<glm::vec3> positions;
     std::vector<glm::vec3> normals;  // unit length, one per vertex
     std::vector<glm::vec2> uv0, uv1;  // one per vertex (zero when the primitive had none)
+    // Optional per-vertex attributes: empty when no primitive has them, else one per vertex (defaults for the
+    // primitives without: colour 1, tangent (0, 0, 0, 1) = none).
+    std::vector<glm::vec4> colors;  // COLOR_0, linear RGBA: multiplies the base colour and alpha
+    std::vector<glm::vec4> tangents;  // xyz unit tangent in world space, w = +-1 bitangent sign (glTF TANGENT)
     std::vector<glm::uvec3> triangles;  // indices into the vertex arrays
     std::vector<uint32_t> materialIds;  // one per triangle, index into Scene::materials
 
@@ -99,6 +117,7 @@ struct ImportStats {
     size_t trianglesRead = 0;  // before dropping degenerate ones
     size_t degenerateTrianglesDropped = 0;
     size_t primitivesWithGeneratedNormals = 0;
+    size_t primitivesWithGeneratedTangents = 0;  // normal-mapped primitives without TANGENT
     size_t primitivesSkipped = 0;  // points and lines: nothing to render
     size_t dracoPrimitives = 0;
     std::vector<std::string> warnings;

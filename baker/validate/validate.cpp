@@ -239,7 +239,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     r.width = std::max(1, settings.width);
     r.height = settings.height > 0 ? settings.height : std::max(1, int(std::lround(float(r.width) / aspect)));
 
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     RenderSettings rs;

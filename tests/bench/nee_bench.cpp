@@ -106,7 +106,7 @@ int main(int argc, char** argv) {
     }
     Scene scene = loadGltf(scenePath);
     Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     std::filesystem::create_directories(outDir);
     RenderSettings settings;

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
         else scenePath = a;
     }
     Scene scene = loadGltf(scenePath);
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];

@@ -75,7 +75,7 @@ TEST_P(Furnace, PathTracerWithinOnePercentAndTheAssetWithinItsBound) {
     const double expected = 1.0 / (1.0 - a);
     Scene scene = load(std::string("furnace-") + GetParam());
     // The path tracer, unbounded depth: the image mean (many independent paths) within 1%.
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     RenderSettings rs;

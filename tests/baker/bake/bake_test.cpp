@@ -277,7 +277,7 @@ TEST(Bake, EmissionStaysOutOfTheNetworks) {
     EXPECT_LT(onLamp, 0.01 * 3.0) << "floor " << onFloor;  // 1% of the lamp's mean emission
     std::printf("asset on the lamp %.5f, on the floor beside it %.5f\n", onLamp, onFloor);
     // Rendered through the asset, the lamp is its emission (scattered ~0 plus Le from the material).
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     RenderSettings rs;
     rs.width = rs.height = 16;
     rs.spp = 1;

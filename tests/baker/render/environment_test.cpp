@@ -216,7 +216,7 @@ TEST(EnvironmentSampler, EstimateMatchesUniformSphereSamplingAndClosedForm) {
 }
 
 Image renderScene(const Scene& scene, int size, int spp, int maxDepth = 0, uint32_t seed = 1) {
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     RenderSettings s;

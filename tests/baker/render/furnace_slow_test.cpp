@@ -18,7 +18,7 @@ TEST(DiffuseFurnaceSlow, AlbedoPoint99) {
     m.specular = 0.0f;
     m.emission = glm::vec3(1.0f);
     Scene scene = test::makeSphereFurnace(m);
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     RenderSettings s;

@@ -18,7 +18,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 Image renderScene(const Scene& scene, int size, int spp, int maxDepth, uint32_t seed = 1) {
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     RenderSettings s;

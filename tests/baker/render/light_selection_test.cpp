@@ -71,7 +71,7 @@ TEST(LightGroups, ManyLightsAreClusteredAndEveryEntryBelongsToOneGroup) {
 
 TEST(LightGroups, CandidateTestNeverDropsALightThatContributes) {
     Scene scene = splitRooms();
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     SplitMix64 rng(7);
     int checked = 0, culled = 0;
@@ -173,7 +173,7 @@ TEST(QuadLights, IrradianceUnderAQuadLightMatchesTheFormFactor) {
     scene.updateBounds();
     const double expected = a * Le * 4.0 * cornerFormFactor(1.0 / h, 0.5 / h);
 
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     ASSERT_EQ(lights.groupCount(), 1u);
     EXPECT_TRUE(lights.groupIsParallelogram(0));

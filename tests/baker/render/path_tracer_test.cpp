@@ -16,7 +16,7 @@ namespace nrad {
 namespace {
 
 Image render(const Scene& scene, const RenderSettings& s, RenderStats* stats = nullptr) {
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];

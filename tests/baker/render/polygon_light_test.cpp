@@ -270,7 +270,7 @@ TEST(PolygonLights, DirectLightMatchesLambertsFormulaEverywhere) {
             for (const Receiver& rcv : receivers()) {
                 Scene scene;
                 uint32_t tri = buildScene(scene, rig, at, rcv);
-                Accel accel(scene.mesh);
+                Accel accel(scene);
                 LightSampler lights(scene);
                 ASSERT_EQ(lights.groupCount(), rig.emitters.size());
                 const glm::vec3 big = glm::max(glm::abs(scene.bounds.lower), glm::abs(scene.bounds.upper));
@@ -355,7 +355,7 @@ TEST(RayMargins, NoSelfShadowOnALargeTiltedPlaneThroughTheOrigin) {
     sun.intensity = glm::vec3(1.0f);
     scene.lights.push_back(sun);
     scene.updateBounds();
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
     const double exact = double(kAlbedo) / kPi * double(glm::dot(n, -sun.direction));

@@ -114,7 +114,7 @@ TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
     std::vector<uint8_t> bytes = format::encode(a);
     NradAsset asset = nullptr;
     ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
-    Accel accel(scene.mesh);
+    Accel accel(scene);
     const FirstHits hits = firstHits(scene, accel, scene.cameras[0], 64, 64, a.grid);
     SeamFigure f = seamFigure(hits, a.grid, asset);
     nradReleaseAsset(asset);
