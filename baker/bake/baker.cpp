@@ -48,6 +48,12 @@ uint64_t sceneHash(const Scene& scene) {
                      l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone};
         hashBytes(h, f, sizeof f / sizeof f[0]);
     }
+    // Soft suns and lights the engine draws (only when set, so other scenes keep their hashes).
+    for (const PunctualLight& l : scene.lights)
+        if (l.soft() || l.runtimeDirect) {
+            float f[] = {l.cosAngularRadius, float(l.runtimeDirect)};
+            hashBytes(h, f, 2);
+        }
     // The environment lights the scene too (only when active, so scenes lit by their own lights keep the
     // hashes, and the cached references, they had before environments existed).
     if (const Environment& e = scene.environment; e.active()) {
@@ -80,6 +86,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     nee.seed ^= settings.samples.seed;
     LightSelector selector(lights, scene.bounds, nee);
     PathTracer tracer(scene, accel, lights, &selector);
+    tracer.setExcludeEngineDrawnDirect(true);  // mixed lighting: the asset holds those lights' indirect light only
     VoxelGrid grid(scene.bounds, settings.grid);
     SurfacePieces pieces(scene.mesh, grid);
     result.surfaceArea = pieces.totalArea();
@@ -152,7 +159,14 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"demodulated", t.demodulate},
                  {"blend_band", settings.blendBand},
                  {"weight_decays", t.weightDecays},
-                 {"environment", environmentMetadata(scene.environment)}};
+                 {"environment", environmentMetadata(scene.environment)},
+                 {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
+    nlohmann::json engine = nlohmann::json::array();
+    for (size_t i = 0; i < scene.lights.size(); ++i)
+        if (scene.lights[i].runtimeDirect) engine.push_back({{"light", i}, {"name", scene.lights[i].name}});
+    // Mixed lighting: the punctual lights whose direct light the engine must add (the asset holds only their
+    // indirect light). Empty: the asset holds all the scattered light.
+    j["engine_drawn_direct"] = engine;
     j["samples"] = result.sampleCount;
     // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
     std::vector<double> err;

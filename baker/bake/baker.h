@@ -24,6 +24,9 @@ struct BakeSettings {
     format::WeightEncoding encoding = format::WeightEncoding::Float16;
     NeeSettings nee;  // light selection of the training paths (learned: trained on warm-up paths first)
     bool metadata = true;
+    // The command-line lighting this bake used (sun, engine-drawn lights) as a JSON object, recorded in the
+    // metadata so that validate and render --asset can light the scene the same way. Empty: none.
+    std::string lightingJson;
 };
 
 struct BakeTimings {

@@ -69,7 +69,7 @@ struct BakeOptions {
     float learningRate = 0.01f, blendBand = defaults().blendBand;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     bool quiet = false, noMetadata = false, noDemodulate = false;
-    EnvironmentOptions environment;
+    LightingOptions lighting;
 };
 
 bool parseGrid(const std::string& s, glm::uvec3& out) {
@@ -102,7 +102,7 @@ int usage(const std::string& what) {
 }
 
 int runBake(BakeOptions o, CLI::App* cmd) {
-    bool configEnvironment = false;
+    bool configEnvironment = false, configLighting = false;
     // A config file supplies defaults; flags given on the command line win.
     if (!o.config.empty()) {
         nlohmann::json cfg;
@@ -117,7 +117,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
                                           "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
                                           "blend_band", "weight_decay", "environment", "environment_intensity",
-                                          "environment_rotation"};
+                                          "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
@@ -141,11 +141,17 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("encoding", "--encoding", o.encoding);
             take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
             take("blend_band", "--blend-band", o.blendBand);
-            take("environment", "--environment", o.environment.spec);
-            take("environment_intensity", "--environment-intensity", o.environment.intensity);
-            take("environment_rotation", "--environment-rotation", o.environment.rotationDegrees);
-            // A config's environment counts as given (applyEnvironmentForCommand asks the command line).
-            configEnvironment = cfg.contains("environment") && cmd->count("--environment") == 0;
+            take("environment", "--environment", o.lighting.environment);
+            take("environment_intensity", "--environment-intensity", o.lighting.intensity);
+            take("environment_rotation", "--environment-rotation", o.lighting.rotationDegrees);
+            take("sun", "--sun", o.lighting.sun);
+            take("sun_illuminance", "--sun-illuminance", o.lighting.sunIlluminance);
+            take("sun_angle", "--sun-angle", o.lighting.sunAngle);
+            take("runtime_direct", "--runtime-direct", o.lighting.runtimeDirect);
+            configEnvironment = cfg.contains("environment");
+            for (const char* k : {"environment", "environment_intensity", "environment_rotation", "sun", "sun_illuminance",
+                                  "sun_angle", "runtime_direct"})
+                configLighting = configLighting || cfg.contains(k);
             if (cfg.contains("weight_decay") && cmd->count("--weight-decay") == 0) {
                 const nlohmann::json& w = cfg["weight_decay"];
                 if (w.is_number()) {
@@ -199,16 +205,11 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
     if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene)) return code;
-    if (configEnvironment) {
-        try {
-            scene.environment = parseEnvironment(o.environment.spec, o.environment.intensity, o.environment.rotationDegrees);
-        } catch (const SceneError& e) {
-            std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
-            return kExitBadInput;
-        }
-    } else if (int code = applyEnvironmentForCommand("bake", cmd, o.environment, o.quiet, scene)) {
+    std::string lightingJson;
+    if (int code = applyLightingForCommand("bake", o.lighting, lightingFlagsGiven(cmd) || configLighting,
+                                           cmd->count("--environment") > 0 || configEnvironment, o.quiet, scene, {}, &lightingJson))
         return code;
-    }
+    s.lightingJson = lightingJson;
     double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
     BakeResult r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
@@ -328,7 +329,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
     cmd->add_flag("--no-demodulate", o->noDemodulate,
                   "Networks learn the scattered radiance itself, not divided by the surface's reflectance");
-    addEnvironmentOptions(cmd, o->environment);
+    addLightingOptions(cmd, o->lighting);
     cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
     return [o, cmd]() { return runBake(*o, cmd); };
 }

@@ -28,20 +28,31 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
 int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera);
 
 // The lighting options every command that renders shares: --environment none|r,g,b|FILE,
-// --environment-intensity, --environment-rotation (degrees about +Y).
-struct EnvironmentOptions {
-    std::string spec;  // empty: not given
+// --environment-intensity, --environment-rotation (degrees about +Y), --sun x,y,z (towards the sun),
+// --sun-illuminance (lux), --sun-angle (angular diameter, degrees; 0 = sharp), --runtime-direct (mixed lighting:
+// all | sun | comma-separated light names or indices).
+struct LightingOptions {
+    std::string environment;  // empty: not given
     float intensity = 1.0f;
     float rotationDegrees = 0.0f;
+    std::string sun;  // empty: none
+    float sunIlluminance = 100000.0f;  // lux: a clear day's sun
+    float sunAngle = 0.0f;  // degrees across
+    std::string runtimeDirect;  // empty: the asset holds every light's scattered light
 };
-void addEnvironmentOptions(CLI::App* cmd, EnvironmentOptions& o);
+void addLightingOptions(CLI::App* cmd, LightingOptions& o);
+// The names of the lighting flags (for `given` tests) and their config keys.
+bool lightingFlagsGiven(CLI::App* cmd);
 
-// Sets scene.environment. Order: the flags when --environment is given; else the environment an asset
-// recorded (`recorded`, the metadata's bake.environment, for validate and render --asset); else, for a scene
-// with no light of its own, the default sky (said on stderr unless quiet). A bad value or map prints
-// "nrad COMMAND: ..." and returns kExitUsage or kExitBadInput.
-int applyEnvironmentForCommand(const char* command, CLI::App* cmd, const EnvironmentOptions& o, bool quiet, Scene& scene,
-                               const std::string& recordedMetadata = {});
+// Lights the scene as the options say: a sun is added to scene.lights; the environment is the one given;
+// lights are marked as drawn by the engine; a scene with no light of its own and no environment given gets the
+// default sky (said on stderr unless quiet). environmentGiven: --environment (or a config's key) was given.
+// Without any lighting flag and with `recordedMetadata` (an asset's META), the lighting the asset recorded is
+// replayed instead. On success lightingJson holds the lighting to record in a bake's metadata. A bad value or map
+// prints "nrad COMMAND: ..." and returns kExitUsage or kExitBadInput.
+int applyLightingForCommand(const char* command, const LightingOptions& o, bool anyFlagGiven, bool environmentGiven,
+                            bool quiet, Scene& scene, const std::string& recordedMetadata = {},
+                            std::string* lightingJson = nullptr);
 
 // validate and render --asset: refuses (kExitBadInput, naming both files) an asset whose recorded scene hash
 // is not the scene's as loaded and lit, unless force. An asset without metadata cannot be checked (said on

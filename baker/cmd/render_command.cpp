@@ -41,7 +41,7 @@ struct RenderOptions {
     uint32_t neeWarmup = NeeSettings{}.warmupSteps;
     int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
-    EnvironmentOptions environment;
+    LightingOptions lighting;
     bool force = false;
 };
 
@@ -100,7 +100,8 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
         size_t length = 0;
         if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
     }
-    if (int code = applyEnvironmentForCommand("render", cmd, o.environment, o.quiet, scene, metadata)) return code;
+    if (int code = applyLightingForCommand("render", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
+                                           scene, metadata)) return code;
     if (!o.asset.empty())
         if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
     Camera camera;
@@ -214,7 +215,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(0, 1 << 20));
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
-    addEnvironmentOptions(cmd, opts->environment);
+    addLightingOptions(cmd, opts->lighting);
     cmd->add_flag("--force", opts->force, "--asset: use an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
     return [opts, cmd]() { return runRender(*opts, cmd); };

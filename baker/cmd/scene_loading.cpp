@@ -1,6 +1,8 @@
 // Scene loading shared by the commands: one message format and exit code for unusable scenes.
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -56,8 +58,8 @@ int chooseCameraForCommand(const char* command, const Scene& scene, int index, b
     return kExitOk;
 }
 
-void addEnvironmentOptions(CLI::App* cmd, EnvironmentOptions& o) {
-    cmd->add_option("--environment", o.spec,
+void addLightingOptions(CLI::App* cmd, LightingOptions& o) {
+    cmd->add_option("--environment", o.environment,
                     "Light from outside the scene: none, a constant sky radiance r,g,b, or an equirectangular HDR map "
                     "(.exr or .hdr). Default: the scene's own lights; a scene without any gets the default sky (1,1,1)");
     cmd->add_option("--environment-intensity", o.intensity, "Multiplies the environment (default 1)")
@@ -65,51 +67,155 @@ void addEnvironmentOptions(CLI::App* cmd, EnvironmentOptions& o) {
     cmd->add_option("--environment-rotation", o.rotationDegrees,
                     "Rotates the environment map about +Y, degrees counter-clockwise seen from above (default 0)")
         ->check(CLI::Range(-1e6f, 1e6f));
+    cmd->add_option("--sun", o.sun, "Adds a sun: x,y,z the direction towards it (world space, +Y up)");
+    cmd->add_option("--sun-illuminance", o.sunIlluminance, "The sun's illuminance in lux (default 100000)")
+        ->check(CLI::Range(0.0f, 1e12f));
+    cmd->add_option("--sun-angle", o.sunAngle,
+                    "The sun's angular diameter in degrees for soft shadows (0.53 is the real sun's; default 0: sharp)")
+        ->check(CLI::Range(0.0f, 30.0f));
+    cmd->add_option("--runtime-direct", o.runtimeDirect,
+                    "Mixed lighting: lights whose direct light the engine draws at run time (the asset holds only their "
+                    "indirect light): all (every punctual light and the sun), sun, or comma-separated light names or "
+                    "indices");
 }
 
-int applyEnvironmentForCommand(const char* command, CLI::App* cmd, const EnvironmentOptions& o, bool quiet, Scene& scene,
-                               const std::string& recordedMetadata) {
-    const bool given = cmd->count("--environment") > 0;
-    if (!given && (cmd->count("--environment-intensity") > 0 || cmd->count("--environment-rotation") > 0)) {
+bool lightingFlagsGiven(CLI::App* cmd) {
+    for (const char* f : {"--environment", "--environment-intensity", "--environment-rotation", "--sun", "--sun-illuminance",
+                          "--sun-angle", "--runtime-direct"})
+        if (cmd->count(f) > 0) return true;
+    return false;
+}
+
+namespace {
+
+constexpr float kLumensPerWatt = 683.0f;  // as glTF's directional lights (docs/lights.md)
+
+std::vector<std::string> splitList(const std::string& s) {
+    std::vector<std::string> parts;
+    size_t at = 0;
+    for (size_t comma; (comma = s.find(',', at)) != std::string::npos; at = comma + 1) parts.push_back(s.substr(at, comma - at));
+    parts.push_back(s.substr(at));
+    return parts;
+}
+
+// Applies explicit options (not the recorded ones). Returns an exit code; fills `record`.
+int applyOptions(const char* command, const LightingOptions& o, bool environmentGiven, bool quiet, Scene& scene,
+                 nlohmann::json& record) {
+    if (!environmentGiven && (o.intensity != 1.0f || o.rotationDegrees != 0.0f)) {
         std::fprintf(stderr, "nrad %s: --environment-intensity and --environment-rotation need --environment\n", command);
         return kExitUsage;
     }
+    if (!o.sun.empty()) {
+        float x, y, z;
+        char rest;
+        if (std::sscanf(o.sun.c_str(), "%f,%f,%f%c", &x, &y, &z, &rest) != 3 || !std::isfinite(x) || !std::isfinite(y) ||
+            !std::isfinite(z) || !(x * x + y * y + z * z > 0.0f)) {
+            std::fprintf(stderr, "nrad %s: --sun %s: expected x,y,z, a finite non-zero direction towards the sun\n", command,
+                         o.sun.c_str());
+            return kExitUsage;
+        }
+        if (!(o.sunIlluminance >= 0.0f) || !(o.sunAngle >= 0.0f && o.sunAngle <= 30.0f)) {
+            std::fprintf(stderr, "nrad %s: --sun-illuminance must be >= 0 and --sun-angle 0..30 degrees\n", command);
+            return kExitUsage;
+        }
+        PunctualLight sun;
+        sun.type = PunctualLight::Type::Directional;
+        sun.name = "sun";
+        sun.direction = -glm::normalize(glm::vec3(x, y, z));
+        sun.intensity = glm::vec3(o.sunIlluminance / kLumensPerWatt);
+        sun.cosAngularRadius = o.sunAngle > 0.0f ? float(std::cos(0.5 * double(o.sunAngle) * 3.14159265358979323846 / 180.0)) : 1.0f;
+        scene.lights.push_back(sun);
+        record["sun"] = {x, y, z};
+        record["sun_illuminance"] = o.sunIlluminance;
+        record["sun_angle"] = o.sunAngle;
+        if (!quiet)
+            std::fprintf(stderr, "sun: towards %g,%g,%g, %g lux (%g W/m^2), %s\n", double(x), double(y), double(z),
+                         double(o.sunIlluminance), double(o.sunIlluminance / kLumensPerWatt),
+                         o.sunAngle > 0.0f ? ("soft, " + std::to_string(o.sunAngle) + " degrees across").c_str() : "sharp");
+    }
     try {
-        if (given) {
-            scene.environment = parseEnvironment(o.spec, o.intensity, o.rotationDegrees);
-        } else if (!recordedMetadata.empty()) {
-            nlohmann::json meta = nlohmann::json::parse(recordedMetadata, nullptr, false);
-            const nlohmann::json* env = nullptr;
-            if (meta.is_object() && meta.contains("bake") && meta["bake"].is_object() && meta["bake"].contains("environment"))
-                env = &meta["bake"]["environment"];
-            if (env && env->is_object()) {
-                std::string kind = env->value("kind", "none");
-                if (kind == "constant" && env->value("default", false)) {
-                    scene.environment = defaultSky();
-                } else if (kind == "constant" || kind == "map") {
-                    std::string spec = env->value("source", "");
-                    scene.environment = parseEnvironment(spec, env->value("intensity", 1.0f), env->value("rotation_degrees", 0.0f));
-                }
-                if (!quiet && scene.environment.active())
-                    std::fprintf(stderr, "environment: %s (as the asset recorded)\n", scene.environment.describe().c_str());
-                return kExitOk;
-            }
+        if (environmentGiven) {
+            scene.environment = parseEnvironment(o.environment, o.intensity, o.rotationDegrees);
+            if (!quiet && scene.environment.active())
+                std::fprintf(stderr, "environment: %s\n", scene.environment.describe().c_str());
         }
     } catch (const SceneError& e) {
         std::fprintf(stderr, "nrad %s: %s\n", command, e.what());
         return kExitBadInput;
     }
-    if (!given && !scene.hasLight()) {
+    if (!o.runtimeDirect.empty()) {
+        std::vector<std::string> names = splitList(o.runtimeDirect);
+        for (const std::string& n : names) {
+            bool found = false;
+            for (size_t i = 0; i < scene.lights.size(); ++i) {
+                PunctualLight& l = scene.lights[i];
+                bool match = n == "all" || (n == "sun" && l.type == PunctualLight::Type::Directional) || n == l.name ||
+                             n == std::to_string(i);
+                if (!match) continue;
+                found = true;
+                if (l.soft()) {
+                    std::fprintf(stderr, "nrad %s: --runtime-direct %s: light %zu (%s) is soft; an engine draws sharp lights "
+                                         "(--sun-angle 0)\n", command, n.c_str(), i, l.name.c_str());
+                    return kExitUsage;
+                }
+                l.runtimeDirect = true;
+            }
+            if (!found) {
+                std::fprintf(stderr, "nrad %s: --runtime-direct %s: the scene has no such punctual light (%zu lights)\n",
+                             command, n.c_str(), scene.lights.size());
+                return kExitUsage;
+            }
+        }
+        record["runtime_direct"] = o.runtimeDirect;
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+int applyLightingForCommand(const char* command, const LightingOptions& options, bool anyFlagGiven, bool environmentGiven,
+                            bool quiet, Scene& scene, const std::string& recordedMetadata, std::string* lightingJson) {
+    LightingOptions o = options;
+    bool fromAsset = false;
+    if (!anyFlagGiven && !recordedMetadata.empty()) {
+        // Replay what the asset recorded: its environment and its command-line lighting.
+        nlohmann::json meta = nlohmann::json::parse(recordedMetadata, nullptr, false);
+        const nlohmann::json bake = meta.is_object() ? meta.value("bake", nlohmann::json()) : nlohmann::json();
+        if (bake.is_object() && bake.contains("environment") && bake["environment"].is_object()) {
+            fromAsset = true;
+            const nlohmann::json& env = bake["environment"];
+            const std::string kind = env.value("kind", "none");
+            environmentGiven = !(kind == "constant" && env.value("default", false));
+            o.environment = kind == "none" ? "none" : env.value("source", "none");
+            o.intensity = env.value("intensity", 1.0f);
+            o.rotationDegrees = env.value("rotation_degrees", 0.0f);
+            const nlohmann::json lighting = bake.value("lighting", nlohmann::json::object());
+            if (lighting.is_object()) {
+                if (lighting.contains("sun") && lighting["sun"].is_array() && lighting["sun"].size() == 3) {
+                    char b[96];
+                    std::snprintf(b, sizeof b, "%.9g,%.9g,%.9g", lighting["sun"][0].get<double>(), lighting["sun"][1].get<double>(),
+                                  lighting["sun"][2].get<double>());
+                    o.sun = b;
+                    o.sunIlluminance = lighting.value("sun_illuminance", o.sunIlluminance);
+                    o.sunAngle = lighting.value("sun_angle", o.sunAngle);
+                }
+                o.runtimeDirect = lighting.value("runtime_direct", std::string());
+            }
+            if (!quiet) std::fprintf(stderr, "lighting: as the asset recorded\n");
+        }
+    }
+    nlohmann::json record = nlohmann::json::object();
+    if (int code = applyOptions(command, o, environmentGiven, quiet || fromAsset, scene, record)) return code;
+    if (!environmentGiven && !scene.hasLight()) {
         scene.environment = defaultSky();
         if (!quiet)
             std::fprintf(stderr, "environment: %s has no light of its own: lit by the default sky (constant radiance 1; "
                                  "--environment none for none)\n", scene.sourcePath.c_str());
     }
-    if (!quiet && given && scene.environment.active())
-        std::fprintf(stderr, "environment: %s\n", scene.environment.describe().c_str());
     if (!scene.hasLight() && !quiet)
         std::fprintf(stderr, "warning: %s: nothing lights the scene (no emitter of positive power, no punctual light, no "
                              "environment): every image and every training target is black\n", scene.sourcePath.c_str());
+    if (lightingJson) *lightingJson = record.empty() ? std::string() : record.dump();
     return kExitOk;
 }
 

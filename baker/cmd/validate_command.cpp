@@ -24,7 +24,7 @@ struct ValidateOptions {
     uint32_t seed = 0;
     float exposure = 0.0f;
     bool noCache = false, noBaseline = false, quiet = false, force = false;
-    EnvironmentOptions environment;
+    LightingOptions lighting;
 };
 
 // $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report.
@@ -60,7 +60,8 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         size_t length = 0;
         if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
     }
-    if (int code = applyEnvironmentForCommand("validate", cmd, o.environment, o.quiet, scene, metadata)) return code;
+    if (int code = applyLightingForCommand("validate", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
+                                           scene, metadata)) return code;
     if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
     if (!scene.hasLight()) {
         // Every image would be black and every ratio 0 / 0.
@@ -156,7 +157,7 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
     cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(CLI::Range(-64.0f, 64.0f));
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
-    addEnvironmentOptions(cmd, o->environment);
+    addLightingOptions(cmd, o->lighting);
     cmd->add_flag("--force", o->force, "Validate an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
     return [o, cmd]() { return runValidate(*o, cmd); };

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "baker/render/bsdf.h"
 #include "baker/render/surface.h"
 
 namespace nrad {
@@ -50,6 +51,7 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(sce
                 break;
         }
         if (!(pw > 0.0) || !std::isfinite(pw)) continue;
+        if (l.soft()) escapedEntries_.push_back(uint32_t(lights_.size()));
         lights_.push_back({Entry::Kind::Punctual, uint32_t(i), 0.0f});
         power.push_back(pw);
     }
@@ -58,6 +60,7 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(sce
         double pw = 4.0 * kPi * kPi * double(sceneRadius_) * double(sceneRadius_) * luminance(scene.environment.meanRadiance());
         if (pw > 0.0 && std::isfinite(pw)) {
             environmentEntry_ = int32_t(lights_.size());
+            escapedEntries_.push_back(uint32_t(lights_.size()));
             lights_.push_back({Entry::Kind::Environment, 0, 0.0f});
             power.push_back(pw);
         }
@@ -141,7 +144,11 @@ LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, 
     LightSample ls;
     if (!(pick > 0.0f)) return ls;
     const Entry& e = lights_[i];
-    if (e.kind == Entry::Kind::Environment) return environmentSample(pick, u);
+    if (e.kind == Entry::Kind::Environment) {
+        ls = environmentSample(pick, u);
+        ls.entry = int32_t(i);
+        return ls;
+    }
     if (e.triangle()) {
         const glm::uvec3& tri = scene_.mesh.triangles[e.index];
         float su = std::sqrt(u.x);
@@ -150,7 +157,38 @@ LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, 
         glm::vec3 pl = (1.0f - b1 - b2) * P[tri.x] + b1 * P[tri.y] + b2 * P[tri.z];
         return pointOnTriangle(i, pick, p, pl, b1, b2);
     }
-    return punctualSample(e, pick, p);
+    ls = punctualSample(e, pick, p, u);
+    ls.entry = int32_t(i);
+    return ls;
+}
+
+bool LightSampler::engineDrawn(int32_t entry) const {
+    if (entry < 0 || size_t(entry) >= lights_.size()) return false;
+    const Entry& e = lights_[size_t(entry)];
+    return e.kind == Entry::Kind::Punctual && scene_.lights[e.index].runtimeDirect;
+}
+
+LightSample punctualLightSample(const PunctualLight& l, const glm::vec3& p) {
+    LightSample ls;
+    ls.delta = true;
+    ls.pdf = 1.0f;
+    if (l.type == PunctualLight::Type::Directional) {
+        ls.wi = -l.direction;
+        ls.distance = std::numeric_limits<float>::infinity();
+        ls.Li = l.intensity;
+        return ls;
+    }
+    glm::vec3 d = l.position - p;
+    float dist2 = glm::dot(d, d);
+    if (!(dist2 > 0.0f)) return LightSample{};
+    float dist = std::sqrt(dist2);
+    ls.wi = d / dist;
+    ls.distance = dist;
+    ls.lightPoint = l.position;
+    ls.margin = rayOffset(l.position);
+    ls.Li = l.intensity / dist2;
+    if (l.type == PunctualLight::Type::Spot) ls.Li *= spotAttenuation(l, -ls.wi);
+    return ls;
 }
 
 LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1,
@@ -175,32 +213,62 @@ LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3&
     ls.pdf = pick * dist2 / (absCos * e.area);
     ls.lightPoint = pl;
     ls.lightNormal = nl;
+    ls.entry = int32_t(i);
     ls.margin = triangleMargin(scene_.mesh, e.index);
     if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
     return ls;
 }
 
-LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::vec3& p) const {
+namespace {
+// Solid angle and radiance of a soft sun's disk.
+void softSunDisk(const PunctualLight& l, float& solidAngle, float& sin2) {
+    const float c = std::clamp(l.cosAngularRadius, -1.0f, 1.0f);
+    solidAngle = float(2.0 * kPi) * (1.0f - c);
+    sin2 = std::max(0.0f, 1.0f - c * c);
+}
+}  // namespace
+
+bool LightSampler::softSunRadiance(const PunctualLight& l, const glm::vec3& wi, glm::vec3& Le, float& pdf) {
+    if (!(glm::dot(wi, -l.direction) >= l.cosAngularRadius)) return false;
+    float omega, sin2;
+    softSunDisk(l, omega, sin2);
+    if (!(omega > 0.0f) || !(sin2 > 0.0f)) return false;
+    Le = l.intensity / (float(kPi) * sin2);  // E = integral of Le cos over the disk = Le pi sin^2(radius)
+    pdf = 1.0f / omega;
+    return true;
+}
+
+glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi) {
+    glm::vec3 L = scene.environment.radiance(wi);
+    for (const PunctualLight& l : scene.lights) {
+        glm::vec3 Le;
+        float pdf;
+        if (l.soft() && LightSampler::softSunRadiance(l, wi, Le, pdf)) L += Le;
+    }
+    return L;
+}
+
+LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::vec3& p, const glm::vec2& u) const {
     LightSample ls;
     const PunctualLight& l = scene_.lights[e.index];
     ls.delta = true;
     ls.pdf = pick;
-    if (l.type == PunctualLight::Type::Directional) {
-        ls.wi = -l.direction;
+    if (l.soft()) {
+        // Uniform over the disk's cone around the direction towards the light.
+        float omega, sin2;
+        softSunDisk(l, omega, sin2);
+        const float cosT = 1.0f - u.x * (1.0f - l.cosAngularRadius), sinT = std::sqrt(std::max(0.0f, 1.0f - cosT * cosT));
+        const float phi = float(2.0 * kPi) * u.y;
+        Frame frame = Frame::fromNormal(-l.direction);
+        ls.delta = false;
+        ls.wi = glm::normalize(frame.toWorld(glm::vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT)));
         ls.distance = std::numeric_limits<float>::infinity();
-        ls.Li = l.intensity;
+        ls.Li = l.intensity / (float(kPi) * sin2);
+        ls.pdf = pick / omega;
         return ls;
     }
-    glm::vec3 d = l.position - p;
-    float dist2 = glm::dot(d, d);
-    if (!(dist2 > 0.0f)) return LightSample{};
-    float dist = std::sqrt(dist2);
-    ls.wi = d / dist;
-    ls.distance = dist;
-    ls.lightPoint = l.position;
-    ls.margin = rayOffset(l.position);
-    ls.Li = l.intensity / dist2;
-    if (l.type == PunctualLight::Type::Spot) ls.Li *= spotAttenuation(l, -ls.wi);
+    ls = punctualLightSample(l, p);
+    ls.pdf = ls.pdf > 0.0f ? pick : 0.0f;
     return ls;
 }
 

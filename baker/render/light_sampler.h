@@ -27,7 +27,11 @@ struct LightSample {
     glm::vec3 lightPoint{0.0f};  // sampled point (area and positional lights)
     glm::vec3 lightNormal{0.0f};  // area lights: the emitter's normal on the emitting side
     float margin = 0.0f;  // area lights: triangleMargin of the emitter's triangle; punctual: rayOffset(position)
+    int32_t entry = -1;  // the LightSampler entry sampled
 };
+
+// The exact sample of a delta light (point, spot, sharp directional) as seen from p, pdf 1.
+LightSample punctualLightSample(const PunctualLight& light, const glm::vec3& p);
 
 class LightSampler {
 public:
@@ -45,12 +49,37 @@ public:
     // triangle `triangle`, seen from p. Zero for triangles that are not lights.
     float pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
 
+    // The lights that a ray leaving the scene along wi meets (the environment, soft suns whose disk holds
+    // wi): f(Le, pdf, group, pdfInGroup) for each, pdf the solid-angle pdf with which sample() produces wi for
+    // that light, pdfInGroup the same without the group's probability (sampleGroup's).
+    // Radiance and direction pdf (without pick) of soft directional light l along wi; false outside its disk.
+    static bool softSunRadiance(const PunctualLight& l, const glm::vec3& wi, glm::vec3& Le, float& pdf);
+
+    template <typename F>
+    void forEachEscaped(const glm::vec3& wi, F&& f) const {
+        for (uint32_t i : escapedEntries_) {
+            const Entry& e = lights_[i];
+            glm::vec3 Le;
+            float pdf;
+            if (e.kind == Entry::Kind::Environment) {
+                Le = scene_.environment.radiance(wi);
+                pdf = environment_.pdf(wi);
+            } else if (!softSunRadiance(scene_.lights[e.index], wi, Le, pdf)) {
+                continue;
+            }
+            if (Le.x > 0.0f || Le.y > 0.0f || Le.z > 0.0f) f(Le, pickProbability(i) * pdf, groupOfEntry_[i], pickInGroup_[i] * pdf);
+        }
+    }
+
     // Solid-angle pdf with which sample() produces direction wi towards the environment (zero without one).
     float pdfEnvironment(const glm::vec3& wi) const;
     // The same without the probability of the environment's group (for sampleGroup's MIS).
     float pdfEnvironmentInGroup(const glm::vec3& wi) const;
     // The environment's group, -1 if the scene has no active environment.
     int32_t environmentGroup() const { return environmentEntry_ < 0 ? -1 : int32_t(groupOfEntry_[size_t(environmentEntry_)]); }
+
+    // Whether entry `entry` is a light the engine draws directly at run time (PunctualLight::runtimeDirect).
+    bool engineDrawn(int32_t entry) const;
 
     // Probability of picking light entry i (for tests).
     float pickProbability(size_t i) const;
@@ -106,7 +135,7 @@ private:
         bool triangle() const { return kind == Kind::Triangle; }
     };
     LightSample pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const;
-    LightSample punctualSample(const Entry& e, float pick, const glm::vec3& p) const;
+    LightSample punctualSample(const Entry& e, float pick, const glm::vec3& p, const glm::vec2& u) const;
     LightSample environmentSample(float pick, const glm::vec2& u) const;
     void detectParallelogram(Group& g, const std::vector<double>& power) const;
     // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
@@ -115,6 +144,7 @@ private:
     std::vector<Entry> lights_;
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1
     std::vector<int32_t> entryOfTriangle_;  // triangle -> entry, -1 if not emissive
+    std::vector<uint32_t> escapedEntries_;  // the environment and soft suns
     EnvironmentSampler environment_;
     int32_t environmentEntry_ = -1;
     double totalPower_ = 0.0;
@@ -123,6 +153,10 @@ private:
     std::vector<float> pickInGroup_;  // per entry: probability of the entry given its group
     float sceneRadius_ = 1.0f;
 };
+
+// Radiance arriving along wi (unit) from outside the scene: the environment and the disks of soft suns. What a
+// camera ray that misses every surface sees.
+glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi);
 
 // Angular falloff of a KHR_lights_punctual spot light (smoothstep-like squared ramp from the spec).
 float spotAttenuation(const PunctualLight& light, const glm::vec3& wFromLight);

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/render/camera.h"
+#include "baker/render/light_sampler.h"
 #include "baker/render/sampler.h"
 #include "baker/render/surface.h"
 
@@ -45,6 +46,9 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
         std::vector<eval::Surface> surfaces;
         std::vector<uint8_t> flags;
         std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
+        std::vector<glm::vec3> direct;  // engine-drawn lights' direct light at each hit (mixed lighting)
+        bool mixed = false;
+        for (const PunctualLight& l : scene.lights) mixed = mixed || l.runtimeDirect;
         NeuralRenderStats local;
         for (int tile = range.begin(); tile != range.end(); ++tile) {
             int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
@@ -56,6 +60,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             surfaces.clear();
             cosNV.clear();
             pixelOf.clear();
+            direct.clear();
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
@@ -68,7 +73,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                         Hit hit = accel.intersect(o, d);
                         if (!hit.valid()) {
                             // The sky seen directly: the engine draws it, exactly, as it draws emission.
-                            sum[size_t((y - y0) * ts + (x - x0))] += glm::dvec3(scene.environment.radiance(d));
+                            sum[size_t((y - y0) * ts + (x - x0))] += glm::dvec3(skyRadiance(scene, d));
                             continue;
                         }
                         SurfaceInteraction si = makeInteraction(scene, hit, d);
@@ -80,6 +85,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                         surfaces.push_back(shadingSurface(si));
                         cosNV.push_back(glm::dot(si.ns, si.wo));
                         pixelOf.push_back(uint32_t((y - y0) * ts + (x - x0)));
+                        if (mixed) direct.push_back(engineDrawnDirect(scene, accel, si));
                     }
                 }
             auto t1 = clock::now();
@@ -93,6 +99,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                 float L[3];
                 eval::shade(contentFlags, &rgb[3 * i], surfaces[i], cosNV[i], L);
                 sum[pixelOf[i]] += glm::dvec3(L[0], L[1], L[2]);
+                if (mixed) sum[pixelOf[i]] += glm::dvec3(direct[i]);
                 local.outsideGrid += flags[i] == NRAD_POINT_OUTSIDE_GRID;
                 local.emptyVoxel += flags[i] == NRAD_POINT_EMPTY_VOXEL;
                 local.invalidInput += flags[i] == NRAD_POINT_INVALID_INPUT;

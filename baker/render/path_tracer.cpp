@@ -57,12 +57,29 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
     tfar = c > 0.0f ? ls.distance - margin / c : 0.0f;
 }
 
+glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const SurfaceInteraction& si) {
+    glm::vec3 L(0.0f);
+    Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
+    for (const PunctualLight& light : scene.lights) {
+        if (!light.runtimeDirect) continue;
+        LightSample ls = punctualLightSample(light, si.p);
+        if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !(glm::dot(ls.wi, si.ng) > 0.0f)) continue;
+        glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
+        if (isBlack(f)) continue;
+        glm::vec3 o, dir;
+        float tnear, tfar;
+        shadowRay(si, ls, o, dir, tnear, tfar);
+        if (!(tfar > tnear) || !accel.occluded(o, dir, tnear, tfar)) L += f * ls.Li;
+    }
+    return L;
+}
+
 glm::vec3 PathTracer::radiance(glm::vec3 origin, glm::vec3 direction, Sampler& sampler, int maxDepth,
                                RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee) const {
     ++counters.primary;
     if (record) record->push_back({origin, direction, 0.0f, std::numeric_limits<float>::infinity(), false});
     Hit hit = accel_.intersect(origin, direction);
-    if (!hit.valid()) return scene_.environment.radiance(direction);  // the sky seen directly
+    if (!hit.valid()) return skyRadiance(scene_, direction);  // the sky (and suns' disks) seen directly
     return trace(makeInteraction(scene_, hit, direction), sampler, maxDepth, counters, record, nee);
 }
 
@@ -134,6 +151,8 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         } else if (!lights_.empty()) {
             ls = lights_.sample(si.p, uLight);
         }
+        // Mixed lighting: the engine adds the direct light of its own lights itself.
+        if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
         {
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {
                 glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
@@ -180,18 +199,12 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         if (record) record->push_back({si.p, bs.wi, tnear, std::numeric_limits<float>::infinity(), false});
         Hit hit = accel_.intersect(si.p, bs.wi, tnear);
         if (!hit.valid()) {
-            // The ray leaves the scene: the environment, weighted against having sampled it by NEE here.
-            glm::vec3 Le = scene_.environment.radiance(bs.wi);
-            if (!isBlack(Le)) {
-                float lightPdf;
-                if (selector_) {
-                    int32_t g = lights_.environmentGroup();
-                    lightPdf = g < 0 ? 0.0f : prevProbs[g] * lights_.pdfEnvironmentInGroup(bs.wi);
-                } else {
-                    lightPdf = lights_.pdfEnvironment(bs.wi);
-                }
+            // The ray leaves the scene: the environment and soft suns it meets, each weighted against having
+            // been sampled by NEE here.
+            lights_.forEachEscaped(bs.wi, [&](const glm::vec3& Le, float pdf, uint32_t group, float pdfInGroup) {
+                float lightPdf = selector_ ? prevProbs[group] * pdfInGroup : pdf;
                 L += beta * Le * powerHeuristic(prevBsdfPdf, lightPdf);
-            }
+            });
             break;
         }
         si = makeInteraction(scene_, hit, bs.wi);

@@ -77,6 +77,11 @@ public:
 
     const LightSelector* selector() const { return selector_; }
 
+    // Mixed lighting: leave out the direct light (next event estimation at the first vertex) of the lights the
+    // engine draws at run time (PunctualLight::runtimeDirect), so estimates hold only their indirect light.
+    // For training targets; references keep everything.
+    void setExcludeEngineDrawnDirect(bool exclude) { excludeEngineDrawn_ = exclude; }
+
     // One estimate of the radiance arriving at `origin` from direction `direction` (i.e. leaving the
     // first surface hit towards origin). maxDepth counts path segments including this first ray.
     // If `record` is given, every ray traced is appended to it (benchmarks).
@@ -104,6 +109,11 @@ private:
     const Accel& accel_;
     const LightSampler& lights_;
     const LightSelector* selector_;
+    bool excludeEngineDrawn_ = false;
 };
+
+// The direct light at si of the lights the engine draws at run time (delta lights, exact: f Li cos times
+// visibility through one shadow ray each), as the engine would add it to the asset's indirect light.
+glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const SurfaceInteraction& si);
 
 }  // namespace nrad

@@ -79,6 +79,14 @@ struct PunctualLight {
     glm::vec3 intensity{0.0f};
     float cosInnerCone = 1.0f;  // spot only
     float cosOuterCone = 0.0f;  // spot only
+    // Directional only: cosine of the angular radius of the light's disk (a sun 0.53 degrees across: 0.99998929).
+    // 1 = a sharp (delta) light; below 1 a disk of uniform radiance E / (pi sin^2 radius), sampled over its
+    // cone, seen by rays that leave the scene: soft shadows.
+    float cosAngularRadius = 1.0f;
+    // Mixed lighting: the engine draws this light's direct contribution at run time (with its own shadows);
+    // the asset holds only its indirect light (docs/lights.md).
+    bool runtimeDirect = false;
+    bool soft() const { return type == Type::Directional && cosAngularRadius < 1.0f; }
 };
 
 struct Camera {

@@ -367,7 +367,10 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         SurfacePieces pieces(scene.mesh, grid);
         SampleStats sst;
         say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths)");
-        std::vector<TrainingSample> samples = generateTrainingSamples(scene, tracer, grid, pieces, ss, sst);
+        // Trained like the asset's networks: without the direct light of lights the engine draws.
+        PathTracer baselineTracer(scene, accel, lights);
+        baselineTracer.setExcludeEngineDrawnDirect(true);
+        std::vector<TrainingSample> samples = generateTrainingSamples(scene, baselineTracer, grid, pieces, ss, sst);
         // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
         // probes store lighting and multiply by the albedo), so both are shaded alike.
         if (info.contentFlags & NRAD_CONTENT_DEMODULATED)

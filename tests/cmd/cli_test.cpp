@@ -438,5 +438,36 @@ TEST(CliEnvironment, SkyLitBakeAgreesWithItsReferenceAndAssetsKnowTheirLighting)
     EXPECT_EQ(r.exitCode, 0) << r.output;
 }
 
+// A command-line sun, mixed lighting with it (the engine draws its direct light), replayed by validate from
+// what the asset recorded; bad sun and light names are usage errors.
+TEST(CliEnvironment, SunAndEngineDrawnLights) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("render " + boxScene() + " -o '" + dir + "/sun.exr' --spp 4 --width 32 --sun 0.3,1,0.5 --sun-illuminance 2000 "
+                      "--environment none");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("sun: towards 0.3,1,0.5, 2000 lux"), std::string::npos) << r.output;
+    EXPECT_GT(readExr(dir + "/sun.exr").mean().x, 0.01);
+    EXPECT_EQ(readExr(dir + "/sun.exr").at(0, 0), glm::vec3(0.0f));  // no sky, and the sharp sun's disk is not seen
+    r = run("bake " + boxScene() + " -o '" + dir + "/mixed.nrad' --grid 2 --points 2000 --paths 8 --sun 0.3,1,0.5 "
+            "--sun-illuminance 2000 --environment 0.2,0.2,0.2 --runtime-direct sun -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    RunResult info = run("info '" + dir + "/mixed.nrad'");
+    EXPECT_NE(info.output.find("\"engine_drawn_direct\":[{\"light\":0,\"name\":\"sun\"}]"), std::string::npos) << info.output;
+    r = run("validate " + boxScene() + " '" + dir + "/mixed.nrad' -o '" + dir + "/report' --width 48 --reference-spp 64 "
+            "--curve-max-spp 4 --no-baseline --no-cache");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("lighting: as the asset recorded"), std::string::npos) << r.output;
+    std::ifstream f(dir + "/report/report.json");
+    const double relMse = nlohmann::json::parse(f)["neural"]["metrics"]["relmse"].get<double>();
+    std::printf("sun-lit box, engine-drawn sun: asset relMSE %.3g\n", relMse);
+    EXPECT_LT(relMse, 0.005);
+    for (const std::string& bad : {std::string("--sun 0,0,0"), std::string("--sun 1,2"), std::string("--runtime-direct lamp"),
+                                   std::string("--sun 0,1,0 --sun-angle 0.5 --runtime-direct sun")}) {
+        RunResult b = run("render " + boxScene() + " -o '" + dir + "/bad.exr' --spp 1 --width 8 " + bad);
+        EXPECT_EQ(b.exitCode, 2) << bad << ": " << b.output;
+        EXPECT_FALSE(fs::exists(dir + "/bad.exr")) << bad;
+    }
+}
+
 }  // namespace
 }  // namespace nrad

@@ -382,3 +382,55 @@ TEST(Bake, DemodulatedNetworksLearnLightingAndTheTextureStaysSharp) {
 
 }  // namespace
 }  // namespace nrad
+
+namespace nrad {
+namespace {
+
+// Mixed lighting: a sun the engine draws itself leaves only its indirect light in the asset. On a lone
+// Lambertian plane there is none, so the networks hold ~0, and rendering through the asset (which adds the
+// engine-drawn sun's direct light exactly, with a shadow ray) gives the closed form (a / pi) E cos.
+TEST(Bake, EngineDrawnSunLeavesOnlyIndirectLightInTheAsset) {
+    Scene scene = test::makeLitPlane(0.5f, 1.0f);
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.name = "sun";
+    sun.direction = -glm::normalize(glm::vec3(0.3f, 0.2f, 1.0f));
+    sun.intensity = glm::vec3(2.0f, 1.0f, 0.5f);
+    sun.runtimeDirect = true;
+    scene.lights.push_back(sun);
+    scene.updateBounds();
+    BakeSettings s = smallSettings();
+    s.grid = glm::uvec3(2, 2, 1);
+    s.samples.points = 1000;
+    s.samples.paths = 4;
+    BakeResult r = bakeScene(scene, s);
+    EXPECT_NE(assetMetadata(scene, s, r).find("\"engine_drawn_direct\":[{\"light\":0,\"name\":\"sun\"}]"), std::string::npos);
+    std::vector<uint8_t> bytes = format::encode(r.asset);
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    const float cosSun = glm::dot(-sun.direction, glm::vec3(0, 0, 1));
+    const glm::vec3 direct = 0.5f / 3.14159265f * sun.intensity * cosSun;
+    for (int i = 0; i < 16; ++i) {
+        float p[3] = {-0.9f + 0.12f * float(i), 0.3f - 0.04f * float(i), 0.0f}, n[3] = {0, 0, 1}, d[3] = {0, 0, 1}, rgb[3];
+        ASSERT_EQ(asset.evaluate(p, n, d, rgb), NRAD_OK);
+        for (int c = 0; c < 3; ++c) EXPECT_LT(rgb[c], 1e-3f * direct.x) << i;  // no indirect light to learn
+    }
+    Accel accel(scene);
+    RenderSettings rs;
+    rs.width = rs.height = 8;
+    rs.spp = 1;
+    Image image;
+    ASSERT_EQ(renderThroughAsset(scene, accel, asset.get(), scene.cameras[0], rs, image), NRAD_OK);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(image.mean()[c] / direct[c], 1.0, 1e-3) << c;
+    // The same sun baked into the asset: the networks learn the direct light.
+    scene.lights[0].runtimeDirect = false;
+    BakeResult all = bakeScene(scene, s);
+    bytes = format::encode(all.asset);
+    nrad::Asset baked;
+    ASSERT_EQ(baked.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    ASSERT_EQ(renderThroughAsset(scene, accel, baked.get(), scene.cameras[0], rs, image), NRAD_OK);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(image.mean()[c] / direct[c], 1.0, 0.05) << c;
+}
+
+}  // namespace
+}  // namespace nrad

@@ -336,3 +336,33 @@ TEST(EnvironmentScenes, IsALightOfItsOwn) {
 
 }  // namespace
 }  // namespace nrad
+
+namespace nrad {
+namespace {
+
+// A soft sun (a disk of uniform radiance E / (pi sin^2 alpha)) whose cap lies wholly above a Lambertian plane
+// gives it the irradiance E cos(beta), beta the angle of the disk's centre from the normal: the radiance is
+// (a / pi) E cos(beta), with NEE over the disk's cone and BSDF rays that meet the disk weighted by MIS.
+TEST(EnvironmentScenes, SoftSunOnAPlaneMatchesTheClosedForm) {
+    ThreadScope threads(0);
+    const float a = 0.6f, E = 3.0f;
+    for (float alphaDeg : {0.53f, 5.0f, 20.0f}) {
+        Scene scene = test::makeLitPlane(a, 10.0f);
+        PunctualLight sun;
+        sun.type = PunctualLight::Type::Directional;
+        const float beta = float(kPi / 6.0);
+        sun.direction = -glm::vec3(std::sin(beta), 0.0f, std::cos(beta));
+        sun.intensity = glm::vec3(E);
+        sun.cosAngularRadius = std::cos(0.5f * alphaDeg * float(kPi) / 180.0f);
+        scene.lights.push_back(sun);
+        Image image = renderScene(scene, 8, 1024);
+        const double expected = a / kPi * E * std::cos(beta);
+        EXPECT_NEAR(image.mean().x / expected, 1.0, 0.01) << alphaDeg;
+        // The disk is seen directly by a camera ray that points into it.
+        EXPECT_NEAR(skyRadiance(scene, -sun.direction).x, E / (kPi * (1.0 - double(sun.cosAngularRadius) * sun.cosAngularRadius)),
+                    1e-3 * E / (kPi * (1.0 - double(sun.cosAngularRadius) * sun.cosAngularRadius)));
+    }
+}
+
+}  // namespace
+}  // namespace nrad
