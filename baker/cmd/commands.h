@@ -27,6 +27,16 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
 // index the scene does not have.
 int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera);
 
+// --look-from x,y,z --look-at x,y,z [--up x,y,z] [--fov DEG]: a perspective camera instead of the scene's; --fov
+// alone changes the chosen camera's vertical field of view.
+struct ViewOptions {
+    std::string lookFrom, lookAt, up = "0,1,0";
+    float fovDegrees = 0.0f;  // 0: keep
+};
+void addViewOptions(CLI::App* cmd, ViewOptions& o);
+// Applies the view options to `camera` (after chooseCameraForCommand); kExitUsage with a message when bad.
+int applyViewForCommand(const char* command, const ViewOptions& o, Camera& camera);
+
 // The lighting options every command that renders shares: --environment none|r,g,b|FILE,
 // --environment-intensity, --environment-rotation (degrees about +Y), --sun x,y,z (towards the sun),
 // --sun-illuminance (lux), --sun-angle (angular diameter, degrees; 0 = sharp), --runtime-direct (mixed lighting:

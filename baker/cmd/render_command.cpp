@@ -42,6 +42,7 @@ struct RenderOptions {
     int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
     LightingOptions lighting;
+    ViewOptions view;
     bool force = false;
 };
 
@@ -106,6 +107,7 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
         if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
     Camera camera;
     if (int code = chooseCameraForCommand("render", scene, o.camera, o.quiet, camera)) return code;
+    if (int code = applyViewForCommand("render", o.view, camera)) return code;
     RenderSettings settings;
     settings.spp = o.spp;
     settings.maxDepth = o.maxDepth;
@@ -216,6 +218,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("--chosen-light", opts->chosenLight,
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     addLightingOptions(cmd, opts->lighting);
+    addViewOptions(cmd, opts->view);
     cmd->add_flag("--force", opts->force, "--asset: use an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
     return [opts, cmd]() { return runRender(*opts, cmd); };

@@ -58,6 +58,54 @@ int chooseCameraForCommand(const char* command, const Scene& scene, int index, b
     return kExitOk;
 }
 
+void addViewOptions(CLI::App* cmd, ViewOptions& o) {
+    cmd->add_option("--look-from", o.lookFrom, "Camera position x,y,z (with --look-at: overrides the scene's camera)");
+    cmd->add_option("--look-at", o.lookAt, "Point the camera looks at, x,y,z");
+    cmd->add_option("--up", o.up, "Up direction for --look-from/--look-at (default 0,1,0)");
+    cmd->add_option("--fov", o.fovDegrees, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.0f));
+}
+
+namespace {
+bool parseVec3(const std::string& s, glm::vec3& v) {
+    char rest;
+    return std::sscanf(s.c_str(), "%f,%f,%f%c", &v.x, &v.y, &v.z, &rest) == 3 && std::isfinite(v.x) && std::isfinite(v.y) &&
+           std::isfinite(v.z);
+}
+}  // namespace
+
+int applyViewForCommand(const char* command, const ViewOptions& o, Camera& camera) {
+    if (o.lookFrom.empty() != o.lookAt.empty()) {
+        std::fprintf(stderr, "nrad %s: --look-from and --look-at go together\n", command);
+        return kExitUsage;
+    }
+    if (!o.lookFrom.empty()) {
+        glm::vec3 from, at, up;
+        if (!parseVec3(o.lookFrom, from) || !parseVec3(o.lookAt, at) || !parseVec3(o.up, up)) {
+            std::fprintf(stderr, "nrad %s: --look-from, --look-at and --up take x,y,z (finite numbers)\n", command);
+            return kExitUsage;
+        }
+        glm::vec3 back = from - at;
+        glm::vec3 right = glm::cross(up, back);
+        if (!(glm::length(back) > 0.0f) || !(glm::length(right) > 1e-6f * glm::length(up) * glm::length(back))) {
+            std::fprintf(stderr, "nrad %s: --look-from equals --look-at, or --up is parallel to the view\n", command);
+            return kExitUsage;
+        }
+        back = glm::normalize(back);
+        right = glm::normalize(right);
+        Camera c;
+        c.name = "--look-from";
+        c.position = from;
+        c.worldFromCamera = glm::mat3(right, glm::cross(back, right), back);
+        c.yfov = camera.type == Camera::Type::Perspective ? camera.yfov : 0.6911f;
+        camera = c;
+    }
+    if (o.fovDegrees > 0.0f) {
+        camera.type = Camera::Type::Perspective;
+        camera.yfov = o.fovDegrees * 3.14159265358979323846f / 180.0f;
+    }
+    return kExitOk;
+}
+
 void addLightingOptions(CLI::App* cmd, LightingOptions& o) {
     cmd->add_option("--environment", o.environment,
                     "Light from outside the scene: none, a constant sky radiance r,g,b, or an equirectangular HDR map "

@@ -25,6 +25,7 @@ struct ValidateOptions {
     float exposure = 0.0f;
     bool noCache = false, noBaseline = false, quiet = false, force = false;
     LightingOptions lighting;
+    ViewOptions view;
 };
 
 // $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report.
@@ -71,6 +72,7 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     }
     ValidateSettings s;
     if (int code = chooseCameraForCommand("validate", scene, o.camera, o.quiet, s.camera)) return code;
+    if (int code = applyViewForCommand("validate", o.view, s.camera)) return code;
     s.width = o.width;
     s.height = o.height;
     s.referenceSpp = o.referenceSpp;
@@ -158,6 +160,7 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(CLI::Range(-64.0f, 64.0f));
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
     addLightingOptions(cmd, o->lighting);
+    addViewOptions(cmd, o->view);
     cmd->add_flag("--force", o->force, "Validate an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
     return [o, cmd]() { return runValidate(*o, cmd); };

@@ -155,9 +155,9 @@ private:
         const tinygltf::Image& img = model_.images[size_t(t.source)];
         Texture tex;
         if (img.width <= 0 || img.height <= 0 || img.image.empty()) {
-            warn("image " + std::to_string(t.source) + " (" + img.uri + ") could not be decoded; using white");
-            tex.width = tex.height = 1;
-            tex.texels.assign(1, glm::vec4(1.0f));
+            // A missing or undecodable image is an error, not a white texture: the scene would render wrong.
+            fail("image " + std::to_string(t.source) + (img.uri.empty() || img.uri.rfind("data:", 0) == 0 ? std::string() : " (" + img.uri + ")") +
+                 " is missing or is not a decodable PNG/JPEG");
         } else {
             tex.width = img.width;
             tex.height = img.height;

@@ -66,6 +66,19 @@ MALFORMED = {
                                    d["meshes"][0]["primitives"][0].update(extensions={"KHR_draco_mesh_compression": {
                                        "bufferView": 0, "attributes": {"POSITION": 0}}}))),
         "has no valid bufferView"),
+    "truncated-json.gltf": (gltf(TRI)[:200], "not a valid glTF file"),
+    "infinite-vertex.gltf": (gltf([(0, 0, 0), (1, 0, 0), (0, float("inf"), 0)]), "non-finite position"),
+    # Every triangle degenerate: nothing to render.
+    "zero-triangles.gltf": (gltf([(0, 0, 0), (1, 1, 1), (2, 2, 2)]), "has no triangles"),
+    "missing-image.gltf": (gltf(TRI, extra=lambda d: d.update(
+        materials=[{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}], textures=[{"source": 0}],
+        images=[{"uri": "does-not-exist.png"}]) or d["meshes"][0]["primitives"][0].update(material=0)),
+        "does-not-exist.png"),
+    "texture-not-an-image.gltf": (gltf(TRI, extra=lambda d: d.update(
+        materials=[{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}], textures=[{"source": 0}],
+        images=[{"uri": "data:image/png;base64," + base64.b64encode(b"this is not a PNG").decode()}])
+        or d["meshes"][0]["primitives"][0].update(material=0)),
+        "cannot decode image data for image[0]"),
 }
 
 VALID = {
