@@ -469,5 +469,28 @@ TEST(CliEnvironment, SunAndEngineDrawnLights) {
     }
 }
 
+// --look-from/--look-at override the camera (looking at the box from +X shows it in the image's centre, from
+// far away it is small); half a pair, a degenerate view or bad numbers are usage errors.
+TEST(CliView, LookFromLookAtAndFov) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("render " + boxScene() + " -o '" + dir + "/near.exr' --spp 4 --width 32 --environment 0,0,0.001 "
+                      "--sun 1,0.5,0.2 --sun-illuminance 683 --look-from 3,0,0 --look-at 0,0,0 --fov 40 -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    Image near = readExr(dir + "/near.exr");
+    EXPECT_GT(near.at(16, 16).x, 0.01f);  // the box's lit face in the centre
+    EXPECT_LT(near.at(0, 0).x, 0.01f);  // the dark sky in the corner
+    r = run("render " + boxScene() + " -o '" + dir + "/far.exr' --spp 4 --width 32 --environment 0,0,0.001 "
+            "--sun 1,0.5,0.2 --sun-illuminance 683 --look-from 30,0,0 --look-at 0,0,0 --fov 40 -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_LT(readExr(dir + "/far.exr").mean().x, 0.5 * near.mean().x);
+    for (const std::string& bad : {std::string("--look-from 1,2,3"), std::string("--look-from 1,1,1 --look-at 1,1,1"),
+                                   std::string("--look-from 0,5,0 --look-at 0,0,0"), std::string("--look-from a,b,c --look-at 0,0,0"),
+                                   std::string("--fov 200")}) {
+        RunResult b = run("render " + boxScene() + " -o '" + dir + "/bad.exr' --spp 1 --width 8 " + bad);
+        EXPECT_EQ(b.exitCode, 2) << bad << ": " << b.output;
+        EXPECT_FALSE(fs::exists(dir + "/bad.exr")) << bad;
+    }
+}
+
 }  // namespace
 }  // namespace nrad
