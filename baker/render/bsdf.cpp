@@ -66,19 +66,46 @@ float Bsdf::macroFresnel(float cosTheta) const {
     return maxComponent(dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * pow5(1.0f - cosTheta));
 }
 
-float Bsdf::specularProbability(float cosThetaO) const {
+void Bsdf::lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) const {
     // Expected weight of each lobe at this viewing angle (Fresnel at the macro normal).
     float fresnel = macroFresnel(cosThetaO);
-    float wSpec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
     float baseLum = 0.2126f * p_.baseColor.x + 0.7152f * p_.baseColor.y + 0.0722f * p_.baseColor.z;
-    float wDiff = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
-    if (wSpec <= 0.0f) return 0.0f;
-    if (wDiff <= 0.0f) return 1.0f;
-    return wSpec / (wSpec + wDiff);
+    spec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
+    float base = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
+    diff = (1.0f - p_.transmission) * base;
+    trans = p_.transmission * base;
 }
 
-glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wi) const {
-    if (wo.z <= 0.0f || wi.z <= 0.0f) return glm::vec3(0.0f);
+float Bsdf::specularProbability(float cosThetaO) const {
+    float spec, diff, trans;
+    lobeWeights(cosThetaO, spec, diff, trans);
+    float sum = spec + diff + trans;
+    if (spec <= 0.0f) return 0.0f;
+    return sum > spec ? spec / sum : 1.0f;
+}
+
+float Bsdf::transmissionProbability(float cosThetaO) const {
+    float spec, diff, trans;
+    lobeWeights(cosThetaO, spec, diff, trans);
+    float sum = spec + diff + trans;
+    return trans > 0.0f && sum > 0.0f ? trans / sum : 0.0f;
+}
+
+glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
+    if (wo.z <= 0.0f || wiIn.z == 0.0f) return glm::vec3(0.0f);
+    if (wiIn.z < 0.0f) {
+        // Thin-walled transmission: the specular lobe towards the mirror image of wi through the surface,
+        // weighted by what the specular layer transmits and tinted by the base colour.
+        if (!transmits()) return glm::vec3(0.0f);
+        const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
+        glm::vec3 h = glm::normalize(wo + wi);
+        float schlick = pow5(1.0f - std::clamp(glm::dot(wo, h), 0.0f, 1.0f));
+        float g2 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_) + ggxLambda(wi.z, alpha_));
+        float lobe = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
+        glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
+        return (1.0f - p_.metallic) * p_.transmission * (glm::vec3(1.0f) - p_.specular * fr) * p_.baseColor * lobe;
+    }
+    const glm::vec3& wi = wiIn;
     glm::vec3 h = wo + wi;
     float hl = glm::length(h);
     if (!(hl > 0.0f)) return glm::vec3(0.0f);
@@ -96,16 +123,26 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wi) const {
     // and keeps the albedo at most one. Appendix B is informative, so both are within the specification.
     glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
     float transmitted = (1.0f - p_.specular * macroFresnel(wo.z)) * (1.0f - p_.specular * macroFresnel(wi.z));
-    glm::vec3 dielectric = transmitted * diffuse + p_.specular * fr * specular;
+    glm::vec3 dielectric = (1.0f - p_.transmission) * transmitted * diffuse + p_.specular * fr * specular;
     // Metal: conductor Fresnel with f0 = baseColor.
     glm::vec3 metal = (p_.baseColor + (glm::vec3(1.0f) - p_.baseColor) * schlick) * specular;
     return (1.0f - p_.metallic) * dielectric + p_.metallic * metal;
 }
 
-float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const {
-    if (wo.z <= 0.0f || wi.z <= 0.0f) return 0.0f;
+float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
+    if (wo.z <= 0.0f || wiIn.z == 0.0f) return 0.0f;
+    const float pTrans = transmissionProbability(wo.z);
+    if (wiIn.z < 0.0f) {
+        if (!(pTrans > 0.0f)) return 0.0f;
+        const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
+        glm::vec3 h = glm::normalize(wo + wi);
+        if (!(glm::dot(wo, h) > 0.0f)) return 0.0f;
+        float g1 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_));
+        return pTrans * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
+    }
+    const glm::vec3& wi = wiIn;
     float pSpec = specularProbability(wo.z);
-    float pdf = (1.0f - pSpec) * wi.z / kPi;
+    float pdf = (1.0f - pSpec - pTrans) * wi.z / kPi;
     if (pSpec > 0.0f) {
         glm::vec3 h = glm::normalize(wo + wi);
         float odoth = glm::dot(wo, h);
@@ -130,11 +167,16 @@ BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& 
     glm::vec3 wo = frame_.toLocal(woWorld);
     BsdfSample s;
     if (wo.z <= 0.0f) return s;
-    float pSpec = specularProbability(wo.z);
+    float pSpec = specularProbability(wo.z), pTrans = transmissionProbability(wo.z);
     glm::vec3 wi;
+    bool through = false;
     if (uLobe < pSpec) {
         glm::vec3 h = sampleVisibleNormal(wo, alpha_, u);
         wi = glm::reflect(-wo, h);
+    } else if (uLobe < pSpec + pTrans) {
+        glm::vec3 h = sampleVisibleNormal(wo, alpha_, u);
+        wi = glm::reflect(-wo, h);
+        through = true;
     } else {
         // Cosine-weighted hemisphere (concentric disk mapping).
         glm::vec2 d = 2.0f * u - glm::vec2(1.0f);
@@ -153,6 +195,7 @@ BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& 
         wi = glm::vec3(x, y, std::sqrt(std::max(0.0f, 1.0f - x * x - y * y)));
     }
     if (wi.z <= 0.0f) return s;
+    if (through) wi.z = -wi.z;  // mirrored through the sheet
     s.pdf = pdfLocal(wo, wi);
     if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf)) {
         s.pdf = 0.0f;

@@ -1,9 +1,12 @@
 // BSDF of the glTF 2.0 metallic-roughness material (specification appendix B, with
 // KHR_materials_specular; one documented deviation in the dielectric's diffuse weight, see bsdf.cpp and
 // docs/rendering.md): Lambertian diffuse plus a GGX (Trowbridge-Reitz) specular lobe with the
-// height-correlated Smith masking term, Schlick Fresnel, mixed by metallic. Sampling picks the diffuse
-// lobe (cosine) or the specular lobe (visible-normal sampling, Heitz 2018) and reports the pdf of the
-// mixture, so eval, sample and pdf are consistent with each other.
+// height-correlated Smith masking term, Schlick Fresnel, mixed by metallic; thin-walled transmission
+// (KHR_materials_transmission without a volume) replaces that share of the dielectric's diffuse base by the
+// GGX lobe mirrored through the surface (light passes straight through a smooth sheet, blurred by its
+// roughness), tinted by the base colour and weighted by what the specular layer does not reflect. Sampling
+// picks the diffuse lobe (cosine), the specular lobe (visible-normal sampling, Heitz 2018) or the
+// transmission lobe and reports the pdf of the mixture, so eval, sample and pdf are consistent.
 #pragma once
 
 #include <glm/glm.hpp>
@@ -25,6 +28,7 @@ struct BsdfParams {
     float specular = 1.0f;
     glm::vec3 specularColor{1.0f};
     float ior = 1.5f;
+    float transmission = 0.0f;  // thin-walled KHR_materials_transmission
 };
 
 struct BsdfSample {
@@ -41,8 +45,8 @@ public:
 
     Bsdf(const Frame& shading, const BsdfParams& params);
 
-    // All directions are world-space unit vectors pointing away from the surface. Only reflection:
-    // directions below the shading hemisphere give zero.
+    // All directions are world-space unit vectors pointing away from the surface. wo must lie above the shading
+    // hemisphere; wi below it is transmission (zero unless the material transmits).
     glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi) const;
     float pdf(const glm::vec3& wo, const glm::vec3& wi) const;
     // uLobe picks the lobe, u picks the direction.
@@ -53,12 +57,15 @@ public:
 
     // Local-frame pieces, exposed for tests.
     float specularProbability(float cosThetaO) const;
+    float transmissionProbability(float cosThetaO) const;
+    bool transmits() const { return p_.transmission > 0.0f && p_.metallic < 1.0f; }
     // Largest channel of the dielectric Schlick Fresnel at the macro normal.
     float macroFresnel(float cosTheta) const;
     static float ggxD(float cosThetaH, float alpha);
     static float ggxLambda(float cosTheta, float alpha);
 
 private:
+    void lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) const;
     glm::vec3 evalLocal(const glm::vec3& wo, const glm::vec3& wi) const;
     float pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const;
 

@@ -27,6 +27,15 @@ inline bool isBlack(const glm::vec3& v) { return v.x <= 0.0f && v.y <= 0.0f && v
 inline bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 inline float maxComponent(const glm::vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
 
+// Whether light may travel along wi at si: above the geometric surface (the side of wo), or, through a
+// transmissive surface, below it too, as long as the geometric and the shading normal agree on the side
+// (otherwise light would leak through the shading normal's interpolation).
+inline bool sameSideRule(const SurfaceInteraction& si, const Bsdf& bsdf, const glm::vec3& wi) {
+    float g = glm::dot(wi, si.ng);
+    if (g > 0.0f) return true;
+    return g < 0.0f && bsdf.transmits() && glm::dot(wi, si.ns) < 0.0f;
+}
+
 // Russian roulette starts after this many segments.
 constexpr int kRouletteStart = 3;
 
@@ -63,7 +72,7 @@ glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const Surfac
     for (const PunctualLight& light : scene.lights) {
         if (!light.runtimeDirect) continue;
         LightSample ls = punctualLightSample(light, si.p);
-        if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !(glm::dot(ls.wi, si.ng) > 0.0f)) continue;
+        if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !sameSideRule(si, bsdf, ls.wi)) continue;
         glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
         if (isBlack(f)) continue;
         glm::vec3 o, dir;
@@ -131,7 +140,9 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         int chosen = -1;
         LightSample ls;
         if (selector_ && groups > 0) {
-            recordHere = selector_->distribution(si.p, si.ng, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
+            // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
+            const glm::vec3 cullNormal = bsdf.transmits() ? glm::vec3(0.0f) : si.ng;
+            recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
             // Invert the CDF of probs with uPick, then reuse uPick within the group.
             float acc = 0.0f, before = 0.0f;
             for (size_t g = 0; g < groups; ++g) {
@@ -154,7 +165,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         // Mixed lighting: the engine adds the direct light of its own lights itself.
         if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
         {
-            if (ls.pdf > 0.0f && !isBlack(ls.Li) && glm::dot(ls.wi, si.ng) > 0.0f) {
+            if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
                 glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
                 if (!isBlack(f)) {
                     glm::vec3 o, dir;
@@ -183,7 +194,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
 
         // Continue the path by sampling the BSDF.
         BsdfSample bs = bsdf.sample(si.wo, uLobe, uBsdf);
-        if (!bs.valid() || glm::dot(bs.wi, si.ng) <= 0.0f) break;
+        if (!bs.valid() || !sameSideRule(si, bsdf, bs.wi)) break;
         beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
         if (isBlack(beta) || !isFinite(beta)) break;
         prevBsdfPdf = bs.pdf;

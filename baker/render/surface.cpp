@@ -138,6 +138,10 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
         si.bsdf.roughness *= mr.y;
         si.bsdf.metallic *= mr.z;
     }
+    si.bsdf.transmission = m.transmission;
+    if (m.transmission > 0.0f && m.transmissionTexture.valid())
+        si.bsdf.transmission *= lookup(scene, m.transmissionTexture, mesh, tri, b0, b1, b2).x;
+    si.bsdf.transmission = std::clamp(si.bsdf.transmission, 0.0f, 1.0f);
     si.bsdf.baseColor = glm::clamp(si.bsdf.baseColor, 0.0f, 1.0f);
     si.bsdf.metallic = std::clamp(si.bsdf.metallic, 0.0f, 1.0f);
     si.bsdf.roughness = std::clamp(si.bsdf.roughness, 0.0f, 1.0f);

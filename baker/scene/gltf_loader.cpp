@@ -27,7 +27,8 @@ constexpr int kMaxNodeDepth = 1024;
 const std::set<std::string>& supportedExtensions() {
     static const std::set<std::string> s = {
         "KHR_draco_mesh_compression", "KHR_materials_emissive_strength", "KHR_lights_punctual",
-        "KHR_materials_specular", "KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_ior"};
+        "KHR_materials_specular", "KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_ior",
+        "KHR_materials_transmission"};
     return s;
 }
 
@@ -49,10 +50,8 @@ public:
             if (!supportedExtensions().count(ext))
                 fail("requires extension " + ext + ", which nrad does not support");
         for (const std::string& ext : model_.extensionsUsed)
-            if (!supportedExtensions().count(ext) && ext != "KHR_materials_transmission")
+            if (!supportedExtensions().count(ext))
                 warn("extension " + ext + " is used but not supported; it is ignored");
-            else if (ext == "KHR_materials_transmission")
-                warn("KHR_materials_transmission is ignored: transmissive surfaces render opaque");
 
         importMaterials();
         importLights();
@@ -245,6 +244,20 @@ private:
                 }
                 if (sp->second.Has("specularTexture") || sp->second.Has("specularColorTexture"))
                     warn(where + ": KHR_materials_specular textures are ignored (factors are used)");
+            }
+            auto tr = gm.extensions.find("KHR_materials_transmission");
+            if (tr != gm.extensions.end()) {
+                m.transmission = float(number(tr->second, "transmissionFactor", 0.0));
+                if (tr->second.Has("transmissionTexture")) {
+                    const tinygltf::Value& t = tr->second.Get("transmissionTexture");
+                    int index = int(number(t, "index", -1.0)), texCoord = int(number(t, "texCoord", 0.0));
+                    tinygltf::ExtensionMap ext;
+                    if (t.Has("extensions") && t.Get("extensions").Has("KHR_texture_transform"))
+                        ext["KHR_texture_transform"] = t.Get("extensions").Get("KHR_texture_transform");
+                    m.transmissionTexture = transformed(textureRef(index, texCoord, false, where), ext, where);
+                }
+                if (!std::isfinite(m.transmission)) fail(where + " has a non-finite transmissionFactor");
+                m.transmission = std::clamp(m.transmission, 0.0f, 1.0f);
             }
             auto ior = gm.extensions.find("KHR_materials_ior");
             if (ior != gm.extensions.end()) m.ior = float(number(ior->second, "ior", 1.5));

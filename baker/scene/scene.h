@@ -56,6 +56,10 @@ struct Material {
     glm::vec3 specularColor{1.0f};  // KHR_materials_specular specularColorFactor
     float ior = 1.5f;
     bool doubleSided = false;
+    // KHR_materials_transmission, thin-walled (no KHR_materials_volume): the share of the dielectric base that
+    // passes through the surface instead of being diffusely reflected (factor x texture's red channel).
+    float transmission = 0.0f;
+    TextureRef transmissionTexture;
     TextureRef normalTexture;  // tangent space, linear
     float normalScale = 1.0f;
     // Coverage: OPAQUE ignores alpha; MASK cuts out where alpha < alphaCutoff (light passes through the holes);

@@ -200,7 +200,7 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     fnv(h, f, sizeof f);
     int v[] = {width, height, s.referenceSpp, s.maxDepth, int(s.seed)};
     fnv(h, v, sizeof v);
-    const char version[] = "nrad path tracer 2";  // bump when the renderer's output changes (2: issue 12)
+    const char version[] = "nrad path tracer 3";  // bump when the renderer's output changes (2: issue 12; 3: issue 14)
     fnv(h, version, sizeof version);
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);

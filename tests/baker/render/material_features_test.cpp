@@ -336,5 +336,34 @@ TEST(MaterialFeatures, VertexColoursAndTextureTransforms) {
     EXPECT_NEAR(si.bsdf.baseColor.z, 0.0f, 1e-6f);
 }
 
+// KHR_materials_transmission (thin-walled): a Lambertian floor of albedo a under a clear, smooth, fully
+// transmissive sheet, all under a uniform sky of radiance 1, reflects a (less the sheet's GGX
+// single-scattering loss, < 1%); the same sheet opaque (a white Lambertian) lets the floor see far less sky.
+TEST(MaterialFeatures, ThinTransmissionPassesTheSky) {
+    ThreadScope threads(0);
+    const std::string dir = testing::TempDir();
+    nlohmann::json floor = lambertian(0.5f);
+    nlohmann::json glass = lambertian(1.0f);
+    glass["pbrMetallicRoughness"]["roughnessFactor"] = 0.05;
+    glass["extensions"]["KHR_materials_transmission"] = {{"transmissionFactor", 1.0}};
+    Quad floorQuad;
+    floorQuad.half = 1.0f;
+    Quad sheet;
+    sheet.z = 0.5f;
+    sheet.half = 50.0f;  // covers the floor's whole sky
+    sheet.material = 1;
+    Scene scene = loadGltf(writeGltf(dir, "glass", {floorQuad, sheet}, {floor, glass}));
+    ASSERT_EQ(scene.materials[1].transmission, 1.0f);
+    for (const std::string& w : scene.stats.warnings) EXPECT_EQ(w.find("transmission"), std::string::npos) << w;
+    scene.environment = defaultSky();
+    // The camera between floor and sheet sees only the floor.
+    const float fov = 2.0f * std::atan(2.0f * 0.8f);
+    glm::dvec3 clear = renderMean(scene, {0, 0, 0.25f}, fov, 16, 256);
+    EXPECT_NEAR(clear.x / 0.5, 1.0, 0.015);
+    scene.materials[1].transmission = 0.0f;
+    glm::dvec3 opaque = renderMean(scene, {0, 0, 0.25f}, fov, 16, 64);
+    EXPECT_LT(opaque.x, 0.6 * clear.x);
+}
+
 }  // namespace
 }  // namespace nrad
