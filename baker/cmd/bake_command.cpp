@@ -38,15 +38,6 @@ std::string joinFloats(const std::vector<float>& v) {
     return s;
 }
 
-// The comma-separated parts of s ("" gives one empty part).
-std::vector<std::string> splitCommas(const std::string& s) {
-    std::vector<std::string> parts;
-    size_t at = 0;
-    for (size_t comma; (comma = s.find(',', at)) != std::string::npos; at = comma + 1) parts.push_back(s.substr(at, comma - at));
-    parts.push_back(s.substr(at));
-    return parts;
-}
-
 // Comma-separated finite values >= 0, 1 to 8 of them.
 bool parseFloats(const std::string& s, std::vector<float>& out) {
     out.clear();

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -69,6 +70,9 @@ int applyLightingForCommand(const char* command, const LightingOptions& o, bool 
 // stderr unless quiet).
 int checkAssetSceneForCommand(const char* command, const std::string& assetPath, const std::string& metadata,
                               const Scene& scene, bool force, bool quiet);
+
+// The comma-separated parts of s ("" gives one empty part).
+std::vector<std::string> splitCommas(const std::string& s);
 
 // Each registers its subcommand; the returned callback runs it and returns an exit code.
 std::function<int()> addRenderCommand(CLI::App& app);

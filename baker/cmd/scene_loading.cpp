@@ -58,6 +58,14 @@ int chooseCameraForCommand(const char* command, const Scene& scene, int index, b
     return kExitOk;
 }
 
+std::vector<std::string> splitCommas(const std::string& s) {
+    std::vector<std::string> parts;
+    size_t at = 0;
+    for (size_t comma; (comma = s.find(',', at)) != std::string::npos; at = comma + 1) parts.push_back(s.substr(at, comma - at));
+    parts.push_back(s.substr(at));
+    return parts;
+}
+
 void addViewOptions(CLI::App* cmd, ViewOptions& o) {
     cmd->add_option("--look-from", o.lookFrom, "Camera position x,y,z (with --look-at: overrides the scene's camera)");
     cmd->add_option("--look-at", o.lookAt, "Point the camera looks at, x,y,z");
@@ -138,14 +146,6 @@ namespace {
 
 constexpr float kLumensPerWatt = 683.0f;  // as glTF's directional lights (docs/lights.md)
 
-std::vector<std::string> splitList(const std::string& s) {
-    std::vector<std::string> parts;
-    size_t at = 0;
-    for (size_t comma; (comma = s.find(',', at)) != std::string::npos; at = comma + 1) parts.push_back(s.substr(at, comma - at));
-    parts.push_back(s.substr(at));
-    return parts;
-}
-
 // Applies explicit options (not the recorded ones). Returns an exit code; fills `record`.
 int applyOptions(const char* command, const LightingOptions& o, bool environmentGiven, bool quiet, Scene& scene,
                  nlohmann::json& record) {
@@ -192,7 +192,7 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
         return kExitBadInput;
     }
     if (!o.runtimeDirect.empty()) {
-        std::vector<std::string> names = splitList(o.runtimeDirect);
+        std::vector<std::string> names = splitCommas(o.runtimeDirect);
         for (const std::string& n : names) {
             bool found = false;
             for (size_t i = 0; i < scene.lights.size(); ++i) {

@@ -3,6 +3,10 @@
 
 #include <cmath>
 
+#include "baker/render/accel.h"
+#include "baker/render/light_sampler.h"
+#include "baker/render/path_tracer.h"
+
 namespace nrad::test {
 
 Scene makeSphereFurnace(const Material& material, float radius, int segments, bool smoothNormals) {
@@ -90,6 +94,19 @@ Scene makeLitPlane(float albedo, float halfSize) {
     scene.cameras.push_back(camera);
     scene.updateBounds();
     return scene;
+}
+
+Image renderPathTraced(const Scene& scene, int size, int spp, int maxDepth, uint32_t seed, int tileSize) {
+    Accel accel(scene);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    RenderSettings s;
+    s.width = s.height = size;
+    s.spp = spp;
+    s.maxDepth = maxDepth;
+    s.seed = seed;
+    s.tileSize = tileSize;
+    return tracer.render(scene.cameras[0], s);
 }
 
 }  // namespace nrad::test

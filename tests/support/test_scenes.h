@@ -1,6 +1,7 @@
 // Scenes built in code for analytic tests: a closed emitting sphere (furnace) and a lit plane.
 #pragma once
 
+#include "baker/render/image_io.h"
 #include "baker/scene/scene.h"
 
 namespace nrad::test {
@@ -14,5 +15,8 @@ Scene makeSphereFurnace(const Material& material, float radius = 1.0f, int segme
 // A square Lambertian plane z = 0 of half-size `halfSize` (albedo `albedo`, specular 0) and an orthographic
 // camera above it looking straight down; lights are added by the caller.
 Scene makeLitPlane(float albedo, float halfSize = 10.0f);
+
+// Path traces scene.cameras[0] into a size x size image (NEE by power, MIS; maxDepth 0 = unbounded).
+Image renderPathTraced(const Scene& scene, int size, int spp, int maxDepth = 0, uint32_t seed = 1, int tileSize = 16);
 
 }  // namespace nrad::test

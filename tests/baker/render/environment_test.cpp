@@ -216,15 +216,7 @@ TEST(EnvironmentSampler, EstimateMatchesUniformSphereSamplingAndClosedForm) {
 }
 
 Image renderScene(const Scene& scene, int size, int spp, int maxDepth = 0, uint32_t seed = 1) {
-    Accel accel(scene);
-    LightSampler lights(scene);
-    PathTracer tracer(scene, accel, lights);
-    RenderSettings s;
-    s.width = s.height = size;
-    s.spp = spp;
-    s.maxDepth = maxDepth;
-    s.seed = seed;
-    return tracer.render(scene.cameras[0], s);
+    return test::renderPathTraced(scene, size, spp, maxDepth, seed, 16);
 }
 
 Material lambertian(float albedo) {

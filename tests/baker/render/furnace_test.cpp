@@ -18,16 +18,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 Image renderScene(const Scene& scene, int size, int spp, int maxDepth, uint32_t seed = 1) {
-    Accel accel(scene);
-    LightSampler lights(scene);
-    PathTracer tracer(scene, accel, lights);
-    RenderSettings s;
-    s.width = s.height = size;
-    s.spp = spp;
-    s.maxDepth = maxDepth;
-    s.seed = seed;
-    s.tileSize = 1;
-    return tracer.render(scene.cameras[0], s);
+    return test::renderPathTraced(scene, size, spp, maxDepth, seed, 1);
 }
 
 Material diffuseEmitter(float albedo, glm::vec3 Le) {
