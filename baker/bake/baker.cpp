@@ -10,7 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/render/accel.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 
 namespace nrad {

@@ -9,7 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/render/camera.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/sampler.h"
 #include "baker/render/surface.h"
 

@@ -132,7 +132,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         glm::vec2 uLight = sampler.get2D();
         glm::vec2 uBsdf = sampler.get2D();
         glm::vec2 uLobeRoulette = sampler.get2D();  // BSDF lobe choice, Russian roulette
-        float uPick = uLight.x, uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
+        float uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
 
         // Next event estimation.
         NeeRecord neeRecord;
@@ -143,21 +143,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
             // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
             const glm::vec3 cullNormal = bsdf.transmits() ? glm::vec3(0.0f) : si.ng;
             recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
-            // Invert the CDF of probs with uPick, then reuse uPick within the group.
-            float acc = 0.0f, before = 0.0f;
-            for (size_t g = 0; g < groups; ++g) {
-                if (!(probs[g] > 0.0f)) continue;
-                chosen = int(g);
-                before = acc;
-                acc += probs[g];
-                if (uPick < acc) break;
-            }
-            if (chosen >= 0) {
-                float p = probs[chosen];
-                float uIn = std::clamp((uPick - before) / p, 0.0f, 0x1.fffffep-1f);
-                ls = lights_.sampleGroup(size_t(chosen), si.p, glm::vec2(uIn, uLight.y));
-                ls.pdf *= p;
-            }
+            ls = selector_->sample(probs, uLight, si.p, chosen);
             if (depth == 0 && nee) nee->firstLight = chosen;
         } else if (!lights_.empty()) {
             ls = lights_.sample(si.p, uLight);

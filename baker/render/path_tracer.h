@@ -15,8 +15,8 @@
 
 #include "baker/render/accel.h"
 #include "baker/render/image_io.h"
-#include "baker/render/light_sampler.h"
-#include "baker/render/light_selection.h"
+#include "baker/lights/light_sampler.h"
+#include "baker/lights/light_selection.h"
 #include "baker/render/sampler.h"
 #include "baker/render/surface.h"
 #include "baker/scene/scene.h"

@@ -1,6 +1,6 @@
 // Environment: light arriving from infinitely far away in every direction a ray leaves the scene by: a
 // constant sky colour or an equirectangular (latitude-longitude) HDR map, with an intensity and a rotation
-// about the up axis (+Y, glTF's up). Importance sampling lives with the renderer (render/environment_light.h);
+// about the up axis (+Y, glTF's up). Importance sampling lives with the renderer (lights/environment_light.h);
 // this is the description and its exact radiance lookup, shared by every renderer.
 //
 // Map convention (docs/lights.md): a world direction d, after undoing the rotation, has polar angle

@@ -16,7 +16,7 @@
 #include "baker/render/accel.h"
 #include "baker/render/surface.h"
 #include "baker/render/camera.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/neural_render.h"
 
 namespace nrad {

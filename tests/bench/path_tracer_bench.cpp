@@ -19,7 +19,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/render/accel.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/util/threads.h"

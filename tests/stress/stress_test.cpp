@@ -11,7 +11,7 @@
 
 #include "baker/bake/baker.h"
 #include "baker/render/accel.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/util/threads.h"

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "baker/render/accel.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 
 namespace nrad::test {

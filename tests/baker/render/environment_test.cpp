@@ -14,9 +14,9 @@
 #include <gtest/gtest.h>
 
 #include "baker/render/accel.h"
-#include "baker/render/environment_light.h"
+#include "baker/lights/environment_light.h"
 #include "baker/render/image_io.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/util/threads.h"

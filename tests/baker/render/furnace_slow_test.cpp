@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "baker/render/accel.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/util/threads.h"
 #include "support/test_scenes.h"

@@ -7,7 +7,7 @@
 
 #include "baker/render/accel.h"
 #include "baker/render/bsdf.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/util/threads.h"
 #include "support/test_scenes.h"

@@ -14,7 +14,7 @@
 
 #include "baker/render/accel.h"
 #include "baker/render/image_io.h"
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
 #include "baker/render/surface.h"
 #include "baker/scene/gltf_loader.h"

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "baker/render/camera.h"
-#include "baker/render/light_selection.h"
+#include "baker/lights/light_selection.h"
 #include "baker/render/path_tracer.h"
 
 namespace nrad {

@@ -1,6 +1,6 @@
-// LightSampler: every light of the scene (emissive triangles as area lights, KHR_lights_punctual point,
-// spot and directional lights, the environment) in one list, picked in proportion to emitted power, for next event
-// estimation. Also answers the pdf of having sampled a given emitter point (for MIS).
+// LightSampler: chooses among the scene's lights (light.h: emissive triangles, KHR_lights_punctual point,
+// spot and directional lights, the environment) in proportion to their power, for next event estimation, and
+// answers the pdf of having sampled a given emitter point or direction (for MIS).
 //
 // For light selection (uniform, learned) the entries are also grouped into *lights* as a user sees them:
 // the emissive triangles of one material that share vertices form one light (a quad, a lamp shade), each
@@ -13,25 +13,15 @@
 
 #include <glm/glm.hpp>
 
-#include "baker/render/environment_light.h"
+#include <memory>
+
+#include "baker/lights/environment_light.h"
+#include "baker/lights/light.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
 
-struct LightSample {
-    glm::vec3 wi{0.0f};  // unit direction from the shading point to the light
-    float distance = 0.0f;  // to the sampled point (infinity for directional lights and the environment)
-    glm::vec3 Li{0.0f};  // incident radiance (area) or irradiance-like term (delta lights) before 1/pdf
-    float pdf = 0.0f;  // solid-angle pdf incl. the pick probability; for delta lights, the pick probability
-    bool delta = false;
-    glm::vec3 lightPoint{0.0f};  // sampled point (area and positional lights)
-    glm::vec3 lightNormal{0.0f};  // area lights: the emitter's normal on the emitting side
-    float margin = 0.0f;  // area lights: triangleMargin of the emitter's triangle; punctual: rayOffset(position)
-    int32_t entry = -1;  // the LightSampler entry sampled
-};
 
-// The exact sample of a delta light (point, spot, sharp directional) as seen from p, pdf 1.
-LightSample punctualLightSample(const PunctualLight& light, const glm::vec3& p);
 
 class LightSampler {
 public:
@@ -52,24 +42,18 @@ public:
     // The lights that a ray leaving the scene along wi meets (the environment, soft suns whose disk holds
     // wi): f(Le, pdf, group, pdfInGroup) for each, pdf the solid-angle pdf with which sample() produces wi for
     // that light, pdfInGroup the same without the group's probability (sampleGroup's).
-    // Radiance and direction pdf (without pick) of soft directional light l along wi; false outside its disk.
-    static bool softSunRadiance(const PunctualLight& l, const glm::vec3& wi, glm::vec3& Le, float& pdf);
-
     template <typename F>
     void forEachEscaped(const glm::vec3& wi, F&& f) const {
         for (uint32_t i : escapedEntries_) {
-            const Entry& e = lights_[i];
             glm::vec3 Le;
             float pdf;
-            if (e.kind == Entry::Kind::Environment) {
-                Le = scene_.environment.radiance(wi);
-                pdf = environment_.pdf(wi);
-            } else if (!softSunRadiance(scene_.lights[e.index], wi, Le, pdf)) {
-                continue;
-            }
+            if (!lights_[i]->escaped(wi, Le, pdf)) continue;
             if (Le.x > 0.0f || Le.y > 0.0f || Le.z > 0.0f) f(Le, pickProbability(i) * pdf, groupOfEntry_[i], pickInGroup_[i] * pdf);
         }
     }
+
+    // Light entry i (for tests and tools).
+    const Light& light(size_t i) const { return *lights_[i]; }
 
     // Solid-angle pdf with which sample() produces direction wi towards the environment (zero without one).
     float pdfEnvironment(const glm::vec3& wi) const;
@@ -108,8 +92,6 @@ public:
     float pdfTriangleInGroup(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
 
 private:
-    LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
-    float entryPdf(size_t i, float pick, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
     void buildGroups(const std::vector<double>& power);
 
     struct Group {
@@ -127,25 +109,18 @@ private:
         bool parallelogram = false;
         glm::vec3 corner{0.0f}, edgeU{0.0f}, edgeV{0.0f};
     };
-    struct Entry {
-        enum class Kind : uint8_t { Triangle, Punctual, Environment };
-        Kind kind;
-        uint32_t index;  // triangle index, index into Scene::lights, or 0 (the environment)
-        float area;  // triangles only
-        bool triangle() const { return kind == Kind::Triangle; }
-    };
-    LightSample pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const;
-    LightSample punctualSample(const Entry& e, float pick, const glm::vec3& p, const glm::vec2& u) const;
-    LightSample environmentSample(float pick, const glm::vec2& u) const;
+    // The sample of entry i (its own pdf times `pick`), with the entry recorded.
+    LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
+    const TriangleLight* triangleLight(size_t i) const;
     void detectParallelogram(Group& g, const std::vector<double>& power) const;
     // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
     LightSample sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
     const Scene& scene_;
-    std::vector<Entry> lights_;
+    EnvironmentSampler environment_;
+    std::vector<std::unique_ptr<Light>> lights_;
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1
     std::vector<int32_t> entryOfTriangle_;  // triangle -> entry, -1 if not emissive
-    std::vector<uint32_t> escapedEntries_;  // the environment and soft suns
-    EnvironmentSampler environment_;
+    std::vector<uint32_t> escapedEntries_;  // lights at infinity: what rays leaving the scene meet
     int32_t environmentEntry_ = -1;
     double totalPower_ = 0.0;
     std::vector<Group> groups_;
@@ -153,12 +128,5 @@ private:
     std::vector<float> pickInGroup_;  // per entry: probability of the entry given its group
     float sceneRadius_ = 1.0f;
 };
-
-// Radiance arriving along wi (unit) from outside the scene: the environment and the disks of soft suns. What a
-// camera ray that misses every surface sees.
-glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi);
-
-// Angular falloff of a KHR_lights_punctual spot light (smoothstep-like squared ramp from the spec).
-float spotAttenuation(const PunctualLight& light, const glm::vec3& wFromLight);
 
 }  // namespace nrad

@@ -1,5 +1,5 @@
 // Uniform and learned light selection; the selection network's forward and backward passes and training.
-#include "baker/render/light_selection.h"
+#include "baker/lights/light_selection.h"
 
 #include <algorithm>
 #include <cmath>
@@ -264,6 +264,25 @@ void LightSelector::networkDistribution(const glm::vec3& p, const glm::vec3& ns,
     NeeNetwork::Activations a;
     network_.forward(x, a);
     maskedSoftmax(a.logits, lights_.groupCount(), mask, probs);
+}
+
+LightSample LightSelector::sample(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const {
+    const size_t groups = lights_.groupCount();
+    chosen = -1;
+    float acc = 0.0f, before = 0.0f;
+    for (size_t g = 0; g < groups; ++g) {
+        if (!(probs[g] > 0.0f)) continue;
+        chosen = int(g);
+        before = acc;
+        acc += probs[g];
+        if (u.x < acc) break;
+    }
+    if (chosen < 0) return LightSample{};
+    const float pick = probs[chosen];
+    const float uIn = std::clamp((u.x - before) / pick, 0.0f, 0x1.fffffep-1f);
+    LightSample ls = lights_.sampleGroup(size_t(chosen), p, glm::vec2(uIn, u.y));
+    ls.pdf *= pick;
+    return ls;
 }
 
 bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const glm::vec3& ns, const glm::vec3& wo,

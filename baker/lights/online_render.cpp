@@ -1,5 +1,5 @@
 // Rendering in rounds with online training of the light-selection network.
-#include "baker/render/online_render.h"
+#include "baker/lights/online_render.h"
 
 #include <algorithm>
 #include <chrono>

@@ -17,7 +17,7 @@
 
 #include <glm/glm.hpp>
 
-#include "baker/render/light_sampler.h"
+#include "baker/lights/light_sampler.h"
 #include "baker/scene/scene.h"
 #include "baker/util/optim.h"
 
@@ -106,6 +106,11 @@ public:
     // depth: the vertex's index along the path (0 = first hit).
     bool distribution(const glm::vec3& p, const glm::vec3& ng, const glm::vec3& ns, const glm::vec3& wo, int depth,
                       float* probs, NeeRecord* record) const;
+    // Next event estimation's light sample from the group distribution `probs` (from distribution()): u.x
+    // picks the group by inverting the CDF of probs and, rescaled within the chosen group's share, is reused
+    // for the point on it (so stratified picks stay stratified over the lights). The pdf includes the group's
+    // probability. chosen: the group, -1 if none has probability.
+    LightSample sample(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const;
 
     // One training step on a round's records (learned mode with train = true; otherwise nothing). Records
     // with zero weight carry no gradient and are skipped; at most trainBatches x 64 are used, spread evenly.

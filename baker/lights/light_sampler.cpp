@@ -1,69 +1,24 @@
-// Power-proportional light selection and per-light sampling.
-#include "baker/render/light_sampler.h"
+// Power-proportional choice among the scene's lights, light groups, and the pdfs MIS needs.
+#include "baker/lights/light_sampler.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include "baker/render/bsdf.h"
 #include "baker/render/surface.h"
 
 namespace nrad {
 
-namespace {
-constexpr double kPi = 3.14159265358979323846;
-double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
-}  // namespace
-
-float spotAttenuation(const PunctualLight& light, const glm::vec3& wFromLight) {
-    float cd = glm::dot(light.direction, wFromLight);
-    float scale = 1.0f / std::max(0.001f, light.cosInnerCone - light.cosOuterCone);
-    float offset = -light.cosOuterCone * scale;
-    float t = std::clamp(cd * scale + offset, 0.0f, 1.0f);
-    return t * t;
-}
-
 LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(scene.environment) {
     sceneRadius_ = std::max(scene.bounds.radius(), 1e-30f);
+    lights_ = makeLights(scene, environment_, sceneRadius_, &environmentEntry_);
     entryOfTriangle_.assign(scene.mesh.triangleCount(), -1);
     std::vector<double> power;
-    for (size_t t = 0; t < scene.mesh.triangleCount(); ++t) {
-        const Material& m = scene.materials[scene.mesh.materialIds[t]];
-        if (!m.emissive()) continue;
-        glm::vec3 e = scene.triangleEmission(t);  // averaged over the triangle's texels: zero-power emitters are no lights
-        float area = scene.mesh.triangleArea(t);
-        double pw = double(area) * kPi * luminance(e) * (m.doubleSided ? 2.0 : 1.0);
-        if (!(pw > 0.0) || !std::isfinite(pw)) continue;
-        entryOfTriangle_[t] = int32_t(lights_.size());
-        lights_.push_back({Entry::Kind::Triangle, uint32_t(t), area});
-        power.push_back(pw);
-    }
-    for (size_t i = 0; i < scene.lights.size(); ++i) {
-        const PunctualLight& l = scene.lights[i];
-        double lum = luminance(l.intensity), pw = 0.0;
-        switch (l.type) {
-            case PunctualLight::Type::Point: pw = 4.0 * kPi * lum; break;
-            case PunctualLight::Type::Spot:
-                pw = 2.0 * kPi * (1.0 - 0.5 * (double(l.cosInnerCone) + double(l.cosOuterCone))) * lum;
-                break;
-            case PunctualLight::Type::Directional:
-                pw = kPi * double(sceneRadius_) * double(sceneRadius_) * lum;
-                break;
-        }
-        if (!(pw > 0.0) || !std::isfinite(pw)) continue;
-        if (l.soft()) escapedEntries_.push_back(uint32_t(lights_.size()));
-        lights_.push_back({Entry::Kind::Punctual, uint32_t(i), 0.0f});
-        power.push_back(pw);
-    }
-    if (environment_.active()) {
-        // What crosses the scene's bounding sphere: pi x mean radiance over its area (pbrt's Phi).
-        double pw = 4.0 * kPi * kPi * double(sceneRadius_) * double(sceneRadius_) * luminance(scene.environment.meanRadiance());
-        if (pw > 0.0 && std::isfinite(pw)) {
-            environmentEntry_ = int32_t(lights_.size());
-            escapedEntries_.push_back(uint32_t(lights_.size()));
-            lights_.push_back({Entry::Kind::Environment, 0, 0.0f});
-            power.push_back(pw);
-        }
+    for (size_t i = 0; i < lights_.size(); ++i) {
+        const Light& light = *lights_[i];
+        power.push_back(light.power());
+        if (light.triangle() >= 0) entryOfTriangle_[size_t(light.triangle())] = int32_t(i);
+        if (light.unbounded()) escapedEntries_.push_back(uint32_t(i));  // what rays leaving the scene may meet
     }
     cdf_.resize(power.size());
     double sum = 0.0;
@@ -122,14 +77,22 @@ LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec
     const auto& P = scene_.mesh.positions;
     glm::vec3 pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
     size_t i = group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
-    const glm::uvec3& tri = scene_.mesh.triangles[lights_[i].index];
+    const TriangleLight& light = *triangleLight(i);
+    const glm::uvec3& tri = scene_.mesh.triangles[size_t(light.triangle())];
     // Barycentrics of pl in the triangle's own vertex order (for emittedRadiance).
     glm::vec3 e1 = P[tri.y] - P[tri.x], e2 = P[tri.z] - P[tri.x], d = pl - P[tri.x];
     float d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
     float d1 = glm::dot(d, e1), d2 = glm::dot(d, e2), den = d11 * d22 - d12 * d12;
     float b1 = den > 0.0f ? std::clamp((d22 * d1 - d12 * d2) / den, 0.0f, 1.0f) : 0.0f;
     float b2 = den > 0.0f ? std::clamp((d11 * d2 - d12 * d1) / den, 0.0f, 1.0f - b1) : 0.0f;
-    return pointOnTriangle(i, globalPick ? pickProbability(i) : pickInGroup_[i], p, pl, b1, b2);
+    LightSample ls = light.sampleAt(p, pl, b1, b2);
+    ls.pdf *= globalPick ? pickProbability(i) : pickInGroup_[i];
+    ls.entry = int32_t(i);
+    return ls;
+}
+
+const TriangleLight* LightSampler::triangleLight(size_t i) const {
+    return lights_[i]->triangle() >= 0 ? static_cast<const TriangleLight*>(lights_[i].get()) : nullptr;
 }
 
 LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const {
@@ -141,145 +104,15 @@ LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u)
 }
 
 LightSample LightSampler::sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const {
-    LightSample ls;
-    if (!(pick > 0.0f)) return ls;
-    const Entry& e = lights_[i];
-    if (e.kind == Entry::Kind::Environment) {
-        ls = environmentSample(pick, u);
-        ls.entry = int32_t(i);
-        return ls;
-    }
-    if (e.triangle()) {
-        const glm::uvec3& tri = scene_.mesh.triangles[e.index];
-        float su = std::sqrt(u.x);
-        float b1 = su * (1.0f - u.y), b2 = su * u.y;  // uniform by area
-        const auto& P = scene_.mesh.positions;
-        glm::vec3 pl = (1.0f - b1 - b2) * P[tri.x] + b1 * P[tri.y] + b2 * P[tri.z];
-        return pointOnTriangle(i, pick, p, pl, b1, b2);
-    }
-    ls = punctualSample(e, pick, p, u);
+    if (!(pick > 0.0f)) return LightSample{};
+    LightSample ls = lights_[i]->sample(p, u);
+    ls.pdf = ls.pdf > 0.0f ? ls.pdf * pick : 0.0f;
     ls.entry = int32_t(i);
     return ls;
 }
 
 bool LightSampler::engineDrawn(int32_t entry) const {
-    if (entry < 0 || size_t(entry) >= lights_.size()) return false;
-    const Entry& e = lights_[size_t(entry)];
-    return e.kind == Entry::Kind::Punctual && scene_.lights[e.index].runtimeDirect;
-}
-
-LightSample punctualLightSample(const PunctualLight& l, const glm::vec3& p) {
-    LightSample ls;
-    ls.delta = true;
-    ls.pdf = 1.0f;
-    if (l.type == PunctualLight::Type::Directional) {
-        ls.wi = -l.direction;
-        ls.distance = std::numeric_limits<float>::infinity();
-        ls.Li = l.intensity;
-        return ls;
-    }
-    glm::vec3 d = l.position - p;
-    float dist2 = glm::dot(d, d);
-    if (!(dist2 > 0.0f)) return LightSample{};
-    float dist = std::sqrt(dist2);
-    ls.wi = d / dist;
-    ls.distance = dist;
-    ls.lightPoint = l.position;
-    ls.margin = rayOffset(l.position);
-    ls.Li = l.intensity / dist2;
-    if (l.type == PunctualLight::Type::Spot) ls.Li *= spotAttenuation(l, -ls.wi);
-    return ls;
-}
-
-LightSample LightSampler::pointOnTriangle(size_t i, float pick, const glm::vec3& p, const glm::vec3& pl, float b1,
-                                          float b2) const {
-    LightSample ls;
-    if (!(pick > 0.0f)) return ls;
-    const Entry& e = lights_[i];
-    glm::vec3 nl = scene_.mesh.geometricNormal(e.index);
-    glm::vec3 d = pl - p;
-    float dist2 = glm::dot(d, d);
-    if (!(dist2 > 0.0f)) return ls;
-    float dist = std::sqrt(dist2);
-    glm::vec3 wi = d / dist;
-    float cosLight = glm::dot(nl, -wi);
-    bool front = cosLight > 0.0f;
-    if (!front) nl = -nl;
-    float absCos = std::abs(cosLight);
-    if (!(absCos > 0.0f)) return ls;
-    ls.Li = emittedRadiance(scene_, e.index, b1, b2, front);
-    ls.wi = wi;
-    ls.distance = dist;
-    ls.pdf = pick * dist2 / (absCos * e.area);
-    ls.lightPoint = pl;
-    ls.lightNormal = nl;
-    ls.entry = int32_t(i);
-    ls.margin = triangleMargin(scene_.mesh, e.index);
-    if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
-    return ls;
-}
-
-namespace {
-// Solid angle and radiance of a soft sun's disk.
-void softSunDisk(const PunctualLight& l, float& solidAngle, float& sin2) {
-    const float c = std::clamp(l.cosAngularRadius, -1.0f, 1.0f);
-    solidAngle = float(2.0 * kPi) * (1.0f - c);
-    sin2 = std::max(0.0f, 1.0f - c * c);
-}
-}  // namespace
-
-bool LightSampler::softSunRadiance(const PunctualLight& l, const glm::vec3& wi, glm::vec3& Le, float& pdf) {
-    if (!(glm::dot(wi, -l.direction) >= l.cosAngularRadius)) return false;
-    float omega, sin2;
-    softSunDisk(l, omega, sin2);
-    if (!(omega > 0.0f) || !(sin2 > 0.0f)) return false;
-    Le = l.intensity / (float(kPi) * sin2);  // E = integral of Le cos over the disk = Le pi sin^2(radius)
-    pdf = 1.0f / omega;
-    return true;
-}
-
-glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi) {
-    glm::vec3 L = scene.environment.radiance(wi);
-    for (const PunctualLight& l : scene.lights) {
-        glm::vec3 Le;
-        float pdf;
-        if (l.soft() && LightSampler::softSunRadiance(l, wi, Le, pdf)) L += Le;
-    }
-    return L;
-}
-
-LightSample LightSampler::punctualSample(const Entry& e, float pick, const glm::vec3& p, const glm::vec2& u) const {
-    LightSample ls;
-    const PunctualLight& l = scene_.lights[e.index];
-    ls.delta = true;
-    ls.pdf = pick;
-    if (l.soft()) {
-        // Uniform over the disk's cone around the direction towards the light.
-        float omega, sin2;
-        softSunDisk(l, omega, sin2);
-        const float cosT = 1.0f - u.x * (1.0f - l.cosAngularRadius), sinT = std::sqrt(std::max(0.0f, 1.0f - cosT * cosT));
-        const float phi = float(2.0 * kPi) * u.y;
-        Frame frame = Frame::fromNormal(-l.direction);
-        ls.delta = false;
-        ls.wi = glm::normalize(frame.toWorld(glm::vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT)));
-        ls.distance = std::numeric_limits<float>::infinity();
-        ls.Li = l.intensity / (float(kPi) * sin2);
-        ls.pdf = pick / omega;
-        return ls;
-    }
-    ls = punctualLightSample(l, p);
-    ls.pdf = ls.pdf > 0.0f ? pick : 0.0f;
-    return ls;
-}
-
-LightSample LightSampler::environmentSample(float pick, const glm::vec2& u) const {
-    LightSample ls;
-    float pdf;
-    ls.wi = environment_.sample(u, pdf, ls.Li);
-    if (!(pdf > 0.0f)) return LightSample{};
-    ls.pdf = pick * pdf;
-    ls.distance = std::numeric_limits<float>::infinity();
-    return ls;
+    return entry >= 0 && size_t(entry) < lights_.size() && lights_[size_t(entry)]->engineDrawn();
 }
 
 float LightSampler::pdfEnvironment(const glm::vec3& wi) const {
@@ -296,28 +129,19 @@ float LightSampler::pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm
                                 const glm::vec3& nLight) const {
     int32_t i = entryOfTriangle_[triangle];
     if (i < 0) return 0.0f;
-    return entryPdf(size_t(i), pickProbability(size_t(i)), p, pLight, nLight);
+    return pickProbability(size_t(i)) * triangleLight(size_t(i))->pdf(p, pLight, nLight);
 }
 
 float LightSampler::pdfTriangleInGroup(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight,
                                        const glm::vec3& nLight) const {
     int32_t i = entryOfTriangle_[triangle];
     if (i < 0) return 0.0f;
-    return entryPdf(size_t(i), pickInGroup_[size_t(i)], p, pLight, nLight);
+    return pickInGroup_[size_t(i)] * triangleLight(size_t(i))->pdf(p, pLight, nLight);
 }
 
 int32_t LightSampler::groupOfTriangle(uint32_t triangle) const {
     int32_t i = entryOfTriangle_[triangle];
     return i < 0 ? -1 : int32_t(groupOfEntry_[size_t(i)]);
-}
-
-float LightSampler::entryPdf(size_t i, float pick, const glm::vec3& p, const glm::vec3& pLight,
-                             const glm::vec3& nLight) const {
-    glm::vec3 d = pLight - p;
-    float dist2 = glm::dot(d, d);
-    float absCos = std::abs(glm::dot(nLight, d)) / std::sqrt(dist2);
-    if (!(absCos > 0.0f)) return 0.0f;
-    return pick * dist2 / (absCos * lights_[i].area);
 }
 
 namespace {
@@ -365,8 +189,8 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     };
     std::vector<std::pair<uint64_t, uint32_t>> keys;  // (material << 32 | vertex, entry)
     for (size_t i = 0; i < n; ++i) {
-        if (!lights_[i].triangle()) continue;
-        uint32_t t = lights_[i].index;
+        if (lights_[i]->triangle() < 0) continue;
+        uint32_t t = uint32_t(lights_[i]->triangle());
         uint64_t mat = scene_.mesh.materialIds[t];
         const glm::uvec3& tri = scene_.mesh.triangles[t];
         for (uint32_t v : {tri.x, tri.y, tri.z}) keys.push_back({(mat << 32) | v, uint32_t(i)});
@@ -390,17 +214,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
 
     // 2. Clusters when there are too many lights: split the largest cluster at the median of its lights'
     // centres along the axis where they spread most.
-    auto entryCenter = [&](uint32_t i) -> glm::vec3 {
-        const Entry& e = lights_[i];
-        if (e.triangle()) {
-            const glm::uvec3& tri = scene_.mesh.triangles[e.index];
-            const auto& P = scene_.mesh.positions;
-            return (P[tri.x] + P[tri.y] + P[tri.z]) / 3.0f;
-        }
-        if (e.kind == Entry::Kind::Environment) return scene_.bounds.center();
-        const PunctualLight& l = scene_.lights[e.index];
-        return l.type == PunctualLight::Type::Directional ? scene_.bounds.center() : l.position;
-    };
+    auto entryCenter = [&](uint32_t i) { return lights_[i]->center(); };
     std::vector<glm::vec3> lightCenter(lights.size());
     for (size_t l = 0; l < lights.size(); ++l) {
         glm::vec3 c(0.0f);
@@ -448,25 +262,21 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
         glm::vec3 normal(0.0f);
         for (uint32_t i : g.entries) {
             g.power += power[i];
-            const Entry& e = lights_[i];
-            if (e.kind == Entry::Kind::Environment) {
-                planar = false;
-                g.unbounded = true;
-            } else if (e.triangle()) {
-                const glm::uvec3& tri = scene_.mesh.triangles[e.index];
-                for (uint32_t v : {tri.x, tri.y, tri.z}) b.extend(scene_.mesh.positions[v]);
-                glm::vec3 nt = scene_.mesh.geometricNormal(e.index);
-                const Material& m = scene_.materials[scene_.mesh.materialIds[e.index]];
-                if (m.doubleSided || (normal != glm::vec3(0.0f) && glm::dot(normal, nt) < 0.9999f)) planar = false;
-                if (normal == glm::vec3(0.0f)) normal = nt;
-            } else {
-                planar = false;
-                const PunctualLight& l = scene_.lights[e.index];
-                if (l.type == PunctualLight::Type::Directional)
-                    g.unbounded = true;
-                else
-                    b.extend(l.position);
+            const Light& light = *lights_[i];
+            if (const Bounds3 lb = light.bounds(); !lb.empty()) {
+                b.extend(lb.lower);
+                b.extend(lb.upper);
             }
+            if (light.unbounded()) g.unbounded = true;
+            if (light.triangle() < 0) {
+                planar = false;
+                continue;
+            }
+            const size_t t = size_t(light.triangle());
+            glm::vec3 nt = scene_.mesh.geometricNormal(t);
+            const Material& m = scene_.materials[scene_.mesh.materialIds[t]];
+            if (m.doubleSided || (normal != glm::vec3(0.0f) && glm::dot(normal, nt) < 0.9999f)) planar = false;
+            if (normal == glm::vec3(0.0f)) normal = nt;
         }
         g.planar = planar && normal != glm::vec3(0.0f);
         g.normal = normal;
@@ -494,13 +304,14 @@ void LightSampler::detectParallelogram(Group& g, const std::vector<double>& powe
     // Two emissive triangles of one untextured material with equal power (so equal area), sharing an edge
     // (a, b), whose other corners c and d satisfy c + d = a + b.
     if (g.entries.size() != 2 || !g.planar) return;
-    const Entry &ea = lights_[g.entries[0]], &eb = lights_[g.entries[1]];
-    if (!ea.triangle() || !eb.triangle()) return;
+    const TriangleLight *ea = triangleLight(g.entries[0]), *eb = triangleLight(g.entries[1]);
+    if (!ea || !eb) return;
     const auto& mesh = scene_.mesh;
-    if (mesh.materialIds[ea.index] != mesh.materialIds[eb.index]) return;
-    if (scene_.materials[mesh.materialIds[ea.index]].emissiveTexture.valid()) return;
+    const size_t ia = size_t(ea->triangle()), ib = size_t(eb->triangle());
+    if (mesh.materialIds[ia] != mesh.materialIds[ib]) return;
+    if (scene_.materials[mesh.materialIds[ia]].emissiveTexture.valid()) return;
     if (!(std::abs(power[g.entries[0]] / g.power - 0.5) < 1e-4)) return;
-    const glm::uvec3 ta = mesh.triangles[ea.index], tb = mesh.triangles[eb.index];
+    const glm::uvec3 ta = mesh.triangles[ia], tb = mesh.triangles[ib];
     uint32_t va[3] = {ta.x, ta.y, ta.z}, vb[3] = {tb.x, tb.y, tb.z};
     uint32_t shared[3], c = 0, d = 0;
     int nShared = 0;

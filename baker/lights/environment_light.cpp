@@ -1,5 +1,5 @@
 // Environment importance sampling (piecewise-constant 2D distribution over the map).
-#include "baker/render/environment_light.h"
+#include "baker/lights/environment_light.h"
 
 #include <algorithm>
 #include <cmath>
