@@ -3,6 +3,7 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
 #include <nrad/format.h>
 
 #include "baker/cmd/commands.h"
@@ -46,6 +47,24 @@ int runInfo(const std::string& path) {
         std::printf("blending: neighbouring networks blended within %g voxels of every interior face (no seams)\n", a.grid.blendBand);
     else
         std::printf("blending: none (one network per point)\n");
+    if (!a.metadata.empty()) {
+        // The lighting the asset was baked under, and what the engine must add itself.
+        nlohmann::json meta = nlohmann::json::parse(a.metadata, nullptr, false);
+        if (meta.is_object() && meta.contains("bake") && meta["bake"].is_object()) {
+            const nlohmann::json& bake = meta["bake"];
+            if (bake.contains("environment") && bake["environment"].is_object())
+                std::printf("environment: %s\n", bake["environment"].value("description", bake["environment"].value("kind", "none")).c_str());
+            if (bake.contains("lighting") && bake["lighting"].is_object() && bake["lighting"].contains("sun"))
+                std::printf("sun: towards %s, %g lux, %g degrees across\n", bake["lighting"]["sun"].dump().c_str(),
+                            bake["lighting"].value("sun_illuminance", 0.0), bake["lighting"].value("sun_angle", 0.0));
+        }
+        if (meta.is_object() && meta.contains("engine_drawn_direct") && meta["engine_drawn_direct"].is_array()) {
+            std::string lights;
+            for (const nlohmann::json& l : meta["engine_drawn_direct"])
+                lights += (lights.empty() ? "" : ", ") + l.value("name", std::string("?")) + " (light " + std::to_string(l.value("light", -1)) + ")";
+            std::printf("direct light the engine draws: %s\n", lights.empty() ? "none (the asset holds every light's scattered light)" : lights.c_str());
+        }
+    }
     std::printf("metadata: %s\n", a.metadata.empty() ? "(none)" : a.metadata.c_str());
     return kExitOk;
 }

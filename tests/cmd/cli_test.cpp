@@ -453,6 +453,9 @@ TEST(CliEnvironment, SunAndEngineDrawnLights) {
     ASSERT_EQ(r.exitCode, 0) << r.output;
     RunResult info = run("info '" + dir + "/mixed.nrad'");
     EXPECT_NE(info.output.find("\"engine_drawn_direct\":[{\"light\":0,\"name\":\"sun\"}]"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("direct light the engine draws: sun (light 0)"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("sun: towards [0.30000001192092896,1.0,0.5], 2000 lux, 0 degrees across"), std::string::npos)
+        << info.output;
     r = run("validate " + boxScene() + " '" + dir + "/mixed.nrad' -o '" + dir + "/report' --width 48 --reference-spp 64 "
             "--curve-max-spp 4 --no-baseline --no-cache");
     ASSERT_EQ(r.exitCode, 0) << r.output;
