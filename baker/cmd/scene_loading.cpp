@@ -144,7 +144,6 @@ bool lightingFlagsGiven(CLI::App* cmd) {
 
 namespace {
 
-constexpr float kLumensPerWatt = 683.0f;  // as glTF's directional lights (docs/lights.md)
 
 // Applies explicit options (not the recorded ones). Returns an exit code; fills `record`.
 int applyOptions(const char* command, const LightingOptions& o, bool environmentGiven, bool quiet, Scene& scene,
@@ -154,10 +153,8 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
         return kExitUsage;
     }
     if (!o.sun.empty()) {
-        float x, y, z;
-        char rest;
-        if (std::sscanf(o.sun.c_str(), "%f,%f,%f%c", &x, &y, &z, &rest) != 3 || !std::isfinite(x) || !std::isfinite(y) ||
-            !std::isfinite(z) || !(x * x + y * y + z * z > 0.0f)) {
+        glm::vec3 towards;
+        if (!parseVec3(o.sun, towards) || !(glm::dot(towards, towards) > 0.0f)) {
             std::fprintf(stderr, "nrad %s: --sun %s: expected x,y,z, a finite non-zero direction towards the sun\n", command,
                          o.sun.c_str());
             return kExitUsage;
@@ -169,15 +166,15 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
         PunctualLight sun;
         sun.type = PunctualLight::Type::Directional;
         sun.name = "sun";
-        sun.direction = -glm::normalize(glm::vec3(x, y, z));
+        sun.direction = -glm::normalize(towards);
         sun.intensity = glm::vec3(o.sunIlluminance / kLumensPerWatt);
         sun.cosAngularRadius = o.sunAngle > 0.0f ? float(std::cos(0.5 * double(o.sunAngle) * 3.14159265358979323846 / 180.0)) : 1.0f;
         scene.lights.push_back(sun);
-        record["sun"] = {x, y, z};
+        record["sun"] = {towards.x, towards.y, towards.z};
         record["sun_illuminance"] = o.sunIlluminance;
         record["sun_angle"] = o.sunAngle;
         if (!quiet)
-            std::fprintf(stderr, "sun: towards %g,%g,%g, %g lux (%g W/m^2), %s\n", double(x), double(y), double(z),
+            std::fprintf(stderr, "sun: towards %g,%g,%g, %g lux (%g W/m^2), %s\n", double(towards.x), double(towards.y), double(towards.z),
                          double(o.sunIlluminance), double(o.sunIlluminance / kLumensPerWatt),
                          o.sunAngle > 0.0f ? ("soft, " + std::to_string(o.sunAngle) + " degrees across").c_str() : "sharp");
     }

@@ -4,13 +4,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "baker/scene/scene.h"  // luminance()
+
 namespace nrad {
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
 
 // Index i with cdf[i] <= u < cdf[i + 1] (cdf ascending from 0 to 1, intervals of zero width never chosen),
 // and u rescaled to [0, 1) within that interval.

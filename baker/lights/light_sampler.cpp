@@ -214,11 +214,10 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
 
     // 2. Clusters when there are too many lights: split the largest cluster at the median of its lights'
     // centres along the axis where they spread most.
-    auto entryCenter = [&](uint32_t i) { return lights_[i]->center(); };
     std::vector<glm::vec3> lightCenter(lights.size());
     for (size_t l = 0; l < lights.size(); ++l) {
         glm::vec3 c(0.0f);
-        for (uint32_t i : lights[l]) c += entryCenter(i);
+        for (uint32_t i : lights[l]) c += lights_[i]->center();
         lightCenter[l] = c / float(lights[l].size());
     }
     std::vector<std::vector<uint32_t>> clusters(1);

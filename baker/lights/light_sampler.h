@@ -4,24 +4,22 @@
 //
 // For light selection (uniform, learned) the entries are also grouped into *lights* as a user sees them:
 // the emissive triangles of one material that share vertices form one light (a quad, a lamp shade), each
-// punctual light is one, the environment is one. Beyond kMaxLightGroups lights, lights are merged into spatial clusters (repeated
-// median splits of the largest cluster along its longest axis). Within a group an entry is picked by power.
+// punctual light is one, the environment is one. Beyond kMaxLightGroups lights, lights are merged into spatial
+// clusters (repeated median splits of the largest cluster along its longest axis). Within a group an entry is
+// picked by power.
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
-
-#include <memory>
 
 #include "baker/lights/environment_light.h"
 #include "baker/lights/light.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
-
-
 
 class LightSampler {
 public:

@@ -15,7 +15,6 @@ namespace nrad {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
 
 // Solid angle of a soft sun's disk and sin^2 of its angular radius.
 void softSunDisk(const PunctualLight& l, float& solidAngle, float& sin2) {

@@ -14,6 +14,7 @@
 
 #include "baker/scene/texture.h"
 #include "baker/util/atomic_file.h"
+#include "baker/util/paths.h"
 
 namespace nrad {
 
@@ -21,11 +22,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string lowerExtension(const std::string& path) {
-    std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
 
 }  // namespace
 

@@ -66,6 +66,19 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
     tfar = c > 0.0f ? ls.distance - margin / c : 0.0f;
 }
 
+namespace {
+// Whether light sample ls reaches si: its shadow ray (appended to `record` if given) finds no occluder.
+bool reachesPoint(const Accel& accel, const SurfaceInteraction& si, const LightSample& ls, std::vector<RecordedRay>* record) {
+    glm::vec3 o, dir;
+    float tnear, tfar;
+    shadowRay(si, ls, o, dir, tnear, tfar);
+    if (record) record->push_back({o, dir, tnear, tfar, true});
+    // A segment shorter than the two margins holds no occluder: the light and the point are within a margin
+    // of each other's planes (and the contribution is about zero).
+    return !(tfar > tnear) || !accel.occluded(o, dir, tnear, tfar);
+}
+}  // namespace
+
 glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const SurfaceInteraction& si) {
     glm::vec3 L(0.0f);
     Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
@@ -74,11 +87,7 @@ glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const Surfac
         LightSample ls = punctualLightSample(light, si.p);
         if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !sameSideRule(si, bsdf, ls.wi)) continue;
         glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
-        if (isBlack(f)) continue;
-        glm::vec3 o, dir;
-        float tnear, tfar;
-        shadowRay(si, ls, o, dir, tnear, tfar);
-        if (!(tfar > tnear) || !accel.occluded(o, dir, tnear, tfar)) L += f * ls.Li;
+        if (!isBlack(f) && reachesPoint(accel, si, ls, nullptr)) L += f * ls.Li;
     }
     return L;
 }
@@ -154,14 +163,8 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
                 glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
                 if (!isBlack(f)) {
-                    glm::vec3 o, dir;
-                    float tnear, tfar;
-                    shadowRay(si, ls, o, dir, tnear, tfar);
                     ++counters.shadow;
-                    if (record) record->push_back({o, dir, tnear, tfar, true});
-                    // A segment shorter than the two margins holds no occluder: the light and the point are
-                    // within a margin of each other's planes (and the contribution is about zero).
-                    if (!(tfar > tnear) || !accel_.occluded(o, dir, tnear, tfar)) {
+                    if (reachesPoint(accel_, si, ls, record)) {
                         float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(si.wo, ls.wi));
                         L += beta * f * ls.Li * (w / ls.pdf);
                         if (recordHere) {

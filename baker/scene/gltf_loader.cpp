@@ -20,8 +20,6 @@ namespace nrad {
 
 namespace {
 
-// Luminous efficacy used to turn photometric glTF light units into radiometric ones (see docs/lights.md).
-constexpr float kLumensPerWatt = 683.0f;
 constexpr int kMaxNodeDepth = 1024;
 
 const std::set<std::string>& supportedExtensions() {

@@ -62,17 +62,24 @@ glm::vec3 Scene::triangleEmission(size_t t) const {
     return m.emission * glm::vec3(sum / double(count));
 }
 
+namespace {
+bool emitsLight(const Scene& scene, size_t t) {
+    if (!scene.materials[scene.mesh.materialIds[t]].emissive()) return false;  // no texture lattice to average
+    glm::vec3 e = scene.triangleEmission(t);
+    return (e.x > 0.0f || e.y > 0.0f || e.z > 0.0f) && scene.mesh.triangleArea(t) > 0.0f;
+}
+}  // namespace
+
 size_t Scene::emissiveTriangleCount() const {
     size_t n = 0;
-    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
-        glm::vec3 e = triangleEmission(t);
-        n += (e.x > 0.0f || e.y > 0.0f || e.z > 0.0f) && mesh.triangleArea(t) > 0.0f ? 1 : 0;
-    }
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) n += emitsLight(*this, t) ? 1 : 0;
     return n;
 }
 
 bool Scene::hasLight() const {
-    if (environment.active() || emissiveTriangleCount() > 0) return true;
+    if (environment.active()) return true;
+    for (size_t t = 0; t < mesh.triangleCount(); ++t)
+        if (emitsLight(*this, t)) return true;  // the first one settles it
     for (const PunctualLight& l : lights)
         if (l.intensity.x > 0.0f || l.intensity.y > 0.0f || l.intensity.z > 0.0f) return true;
     return false;

@@ -14,6 +14,13 @@
 
 namespace nrad {
 
+// Luminous efficacy that turns photometric light units (glTF's candela and lux) into radiometric ones
+// (docs/lights.md): the SI definition of the candela.
+constexpr float kLumensPerWatt = 683.0f;
+
+// Luminance of a linear Rec. 709 colour: how lights' power and maps' brightness are weighed.
+inline double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+
 struct Bounds3 {
     glm::vec3 lower{std::numeric_limits<float>::infinity()};
     glm::vec3 upper{-std::numeric_limits<float>::infinity()};
