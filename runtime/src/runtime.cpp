@@ -22,6 +22,7 @@ using namespace nrad;
 static_assert(NRAD_CONTENT_SCATTERED_RADIANCE == format::kFlagScatteredRadiance, "content flag bits");
 static_assert(NRAD_CONTENT_DEMODULATED == format::kFlagDemodulated, "content flag bits");
 static_assert(NRAD_CONTENT_BLENDED == format::kFlagBlended, "content flag bits");
+static_assert(NRAD_CONTENT_TREE == format::kFlagTree, "content flag bits");
 
 struct NradAsset_ {
     format::Asset asset;  // decoded; weights already in fp32
@@ -30,7 +31,8 @@ struct NradAsset_ {
     const char* metadata = nullptr;  // points into metadataCopy or, for NRAD_LOAD_BORROW, the caller's buffer
     size_t metadataLength = 0;
     uint32_t paramsPerNetwork = 0;
-    std::vector<int32_t> denseLookup;  // voxel -> network, -1 = empty; used when the grid is small enough
+    std::vector<int32_t> denseLookup;  // cell -> network, -1 = empty; used when the grid is small enough
+    eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves)
     float gridFactor[3] = {1, 1, 1};  // eval::gridFactor of each axis
     float blendBand = 0.0f;  // the grid's band with kFlagBlended, else 0 (one network per point)
     std::vector<float> scales;  // per network: the voxel's output scale
@@ -135,8 +137,11 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
     for (int k = 0; k < 3; ++k) a->gridFactor[k] = eval::gridFactor(a->asset.grid, k);
     if (a->asset.header.flags & format::kFlagBlended) a->blendBand = a->asset.grid.blendBand;
-    // A dense voxel -> network table when it is small next to the networks themselves; else binary search.
-    uint64_t voxels = a->asset.grid.voxelCount();
+    a->partition = eval::Partition(a->asset);
+    std::vector<format::TreeNode>().swap(a->asset.tree);  // the partition holds it
+    // A dense cell -> network table when it is small next to the networks themselves (always for a tree,
+    // whose leaves are fewer than its nodes); else binary search.
+    uint64_t voxels = a->partition.cells;
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
         a->denseLookup.assign(size_t(voxels), -1);
         for (size_t i = 0; i < a->asset.voxels.size(); ++i) a->denseLookup[a->asset.voxels[i].index] = int32_t(i);
@@ -159,7 +164,7 @@ int32_t networkOf(const NradAsset_& a, int64_t voxel) {
 // The networks that shade p, their weights and p's position in each voxel (nrad/eval.h supports() and
 // keepOccupied()); 0 with a flag when there is none.
 int locate(const NradAsset_& a, const float p[3], eval::Support s[eval::kMaxSupports], uint8_t& flag) {
-    int count = eval::supports(a.asset.grid, a.gridFactor, a.blendBand, p, s);
+    int count = a.partition.supports(p, s);
     if (count == 0) {
         flag = NRAD_POINT_OUTSIDE_GRID;
         return 0;
@@ -257,7 +262,7 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     // 1. Whole vectors of points through the SIMD block driver: a vector of points in one voxel (the
     //    common case for coherent batches) is located and evaluated in registers there.
     int width = 0;
-    rt::BlockDriver driver = a.denseLookup.empty() ? nullptr : blockDriver(kind, width);
+    rt::BlockDriver driver = a.denseLookup.empty() || !a.partition.tree.empty() ? nullptr : blockDriver(kind, width);
     size_t blocks = driver ? count / size_t(width) : 0;
     if (blocks > 0) {
         s.blocks.resize(blocks);
@@ -428,6 +433,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
                         a->denseLookup.size() * sizeof(int32_t) +
+                        a->partition.tree.size() * (sizeof(format::TreeNode) + sizeof(float)) +
                         a->metadataCopy.size();
         *info = r;
         return NRAD_OK;

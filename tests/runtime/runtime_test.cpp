@@ -19,6 +19,7 @@
 #include "baker/scene/gltf_loader.h"
 #include "runtime/src/kernels.h"  // rt::blendedBlocksSoFar(): which path the vector kernels took
 #include "support/test_paths.h"
+#include "support/test_trees.h"
 
 namespace nrad {
 namespace {
@@ -58,9 +59,7 @@ size_t networkOf(const format::Asset& a, int64_t voxel) {
 
 // The networks that shade p (nrad/eval.h), with the flag the runtime must give.
 int supportsOf(const format::Asset& a, const float p[3], eval::Support s[eval::kMaxSupports], uint32_t& flag) {
-    const float factor[3] = {eval::gridFactor(a.grid, 0), eval::gridFactor(a.grid, 1), eval::gridFactor(a.grid, 2)};
-    const float band = (a.header.flags & format::kFlagBlended) ? a.grid.blendBand : 0.0f;
-    int count = eval::supports(a.grid, factor, band, p, s);
+    int count = eval::Partition(a).supports(p, s);
     if (count == 0) {
         flag = NRAD_POINT_OUTSIDE_GRID;
         return 0;
@@ -163,6 +162,65 @@ TEST(Runtime, EveryKernelMatchesAPlainForwardPass) {
                 }
                 EXPECT_GT(located, 300);
                 EXPECT_LT(located, 700);
+            }
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+// The kd-tree partition: the uniform tree shades exactly as the grid (bit for bit, every kernel, blended or
+// not), and a random tree of leaves of many sizes matches the plain forward pass through eval.h's supports.
+TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
+    for (float band : {0.0f, 0.125f}) {
+        format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 21,
+                                         glm::uvec3(4, 3, 5), band);
+        format::Asset tree = grid;
+        tree.header.flags |= format::kFlagTree;
+        tree.tree = format::uniformTree(grid.grid.dims);
+        const std::vector<uint8_t> gb = format::encode(grid), tb = format::encode(tree);
+        nrad::Asset ga, ta;
+        ASSERT_EQ(ga.loadFromMemory(gb.data(), gb.size()), NRAD_OK);
+        ASSERT_EQ(ta.loadFromMemory(tb.data(), tb.size()), NRAD_OK);
+        Points pts = randomPoints(3000, 4);
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> a(pts.p.size()), b(pts.p.size());
+            std::vector<uint8_t> fa(3000), fb(3000);
+            ASSERT_EQ(ga.evaluateBatch(3000, pts.p.data(), pts.n.data(), pts.d.data(), a.data(), fa.data()), NRAD_OK);
+            ASSERT_EQ(ta.evaluateBatch(3000, pts.p.data(), pts.n.data(), pts.d.data(), b.data(), fb.data()), NRAD_OK);
+            EXPECT_EQ(fa, fb);
+            EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << "kernel " << k << " band " << band;
+        }
+        // A random tree over a finer lattice of the same box.
+        format::Asset adaptive = grid;
+        for (int k = 0; k < 3; ++k) adaptive.grid.dims[k] = 16;
+        adaptive.header.flags |= format::kFlagTree;
+        adaptive.tree = test::randomTree(adaptive.grid.dims, 90, 8);
+        uint32_t leaves = 0;
+        ASSERT_TRUE(format::validateTree(adaptive.grid.dims, adaptive.tree, leaves));
+        adaptive.voxels.clear();
+        for (uint32_t v = 0; v < leaves; ++v)
+            if (v % 3 != 1) adaptive.voxels.push_back({v, 0.5f + 0.01f * float(v)});
+        std::mt19937 rng(3);
+        adaptive.weights.resize(adaptive.voxels.size() * adaptive.topology.parameterCount());
+        for (float& w : adaptive.weights) w = format::halfToFloat(format::floatToHalf(float(int(rng() % 1201) - 600) / 1000.0f));
+        const std::vector<uint8_t> ab = format::encode(adaptive);
+        nrad::Asset aa;
+        ASSERT_EQ(aa.loadFromMemory(ab.data(), ab.size()), NRAD_OK);
+        ASSERT_EQ(format::decode(ab.data(), ab.size(), adaptive), format::DecodeStatus::Ok);
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> rgb(pts.p.size());
+            std::vector<uint8_t> flags(3000);
+            ASSERT_EQ(aa.evaluateBatch(3000, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data(), flags.data()), NRAD_OK);
+            for (size_t i = 0; i < 3000; ++i) {
+                uint32_t flag;
+                const glm::vec3 ref = reference(adaptive, {pts.p[3 * i], pts.p[3 * i + 1], pts.p[3 * i + 2]},
+                                                {pts.n[3 * i], pts.n[3 * i + 1], pts.n[3 * i + 2]},
+                                                {pts.d[3 * i], pts.d[3 * i + 1], pts.d[3 * i + 2]}, flag);
+                ASSERT_EQ(flags[i], flag) << i;
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_NEAR(rgb[3 * i + size_t(c)], ref[c], 2e-5f * std::max(1.0f, std::abs(ref[c]))) << "kernel " << k << " point " << i;
             }
         }
     }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <vector>
 
 #include "nrad/eval_constants.h"
 #include "nrad/format.h"
@@ -159,6 +160,174 @@ inline int keepOccupied(Support* s, int count, Occupied&& occupied) {
 }
 
 // The blended radiance is the sum over the kept supports, in their order, of weight x decoded radiance.
+
+// ----- the kd-tree partition (format::kFlagTree) ------------------------------------------------------------
+
+// A point's leaf: descend from the root, taking the upper child where the grid coordinate t >= split (a point
+// on a plane belongs to the cell above it, as with voxels). Blending at a node's plane uses the half-width
+// band x (the smallest extent, along the node's axis, of the leaves below the node that touch the plane), in
+// lattice voxels: every leaf's bands are at most band x its own extent, so (band <= 1/2) the bands of a leaf's
+// opposite faces never overlap and its position input stays within 1 + 2 band, as on the grid. Where a point
+// lies within a node's half-width w of its plane (|t - split| < w) both children shade it, the upper one
+// weighted aboveFaceWeight(t - split, w) and the lower one 1 minus that, and a leaf's weight is the product of
+// those factors along its path (per axis, then x y z, as on the grid): the weights of every leaf sum to 1 at
+// every point and are C1 across every plane, whatever the leaves' sizes. For the uniform tree
+// (format::uniformTree) every extent is 1, so each node's width is the grid's band and each point's supports,
+// weights and position inputs are the grid's, bit for bit.
+inline std::vector<float> treeBandWidths(const uint32_t dims[3], const std::vector<format::TreeNode>& nodes, float band) {
+    std::vector<float> width(nodes.size(), 0.0f);
+    if (!(band > 0.0f) || nodes.empty()) return width;
+    std::vector<uint32_t> smallest(nodes.size(), UINT32_MAX);
+    std::vector<uint32_t> path;
+    struct Walk {
+        const std::vector<format::TreeNode>& nodes;
+        std::vector<uint32_t>& smallest;
+        std::vector<uint32_t>& path;
+        void operator()(uint32_t at, format::TreeBox b) {
+            const format::TreeNode& n = nodes[at];
+            if (n.axis == format::kTreeLeaf) {
+                for (uint32_t a : path) {
+                    const format::TreeNode& up = nodes[a];
+                    const uint32_t extent = b.hi[up.axis] - b.lo[up.axis];
+                    if ((b.lo[up.axis] == up.split || b.hi[up.axis] == up.split) && extent < smallest[a]) smallest[a] = extent;
+                }
+                return;
+            }
+            path.push_back(at);
+            format::TreeBox lower = b, upper = b;
+            lower.hi[n.axis] = n.split;
+            upper.lo[n.axis] = n.split;
+            (*this)(n.child, lower);
+            (*this)(n.child + 1, upper);
+            path.pop_back();
+        }
+    };
+    format::TreeBox root;
+    for (int k = 0; k < 3; ++k) root.hi[k] = dims[k];
+    Walk{nodes, smallest, path}(0, root);
+    for (size_t i = 0; i < nodes.size(); ++i)
+        if (nodes[i].axis != format::kTreeLeaf) width[i] = band * float(smallest[i]);
+    return width;
+}
+
+// The leaf holding p (no blending) and its lattice box; -1 outside the grid (or for a non-finite p).
+inline int64_t treeLeaf(const format::Grid& g, const float factor[3], const format::TreeNode* nodes, const float p[3],
+                        format::TreeBox* box = nullptr) {
+    float t[3];
+    format::TreeBox b;
+    for (int k = 0; k < 3; ++k) {
+        if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) return -1;
+        t[k] = gridCoordinate(p[k], g.lower[k], factor[k]);
+        b.hi[k] = g.dims[k];
+    }
+    uint32_t at = 0;
+    while (nodes[at].axis != format::kTreeLeaf) {
+        const format::TreeNode& n = nodes[at];
+        if (t[n.axis] >= float(n.split)) {
+            b.lo[n.axis] = n.split;
+            at = n.child + 1;
+        } else {
+            b.hi[n.axis] = n.split;
+            at = n.child;
+        }
+    }
+    if (box) *box = b;
+    return nodes[at].child;
+}
+
+// Position input of grid coordinate t relative to the lattice interval [lo, hi) (2 (t - lo) / (hi - lo) - 1).
+inline float localInBox(float t, uint32_t lo, uint32_t hi) { return 2.0f * (t - float(lo)) / float(hi - lo) - 1.0f; }
+
+// Every leaf that shades p, in leaf order (depth first, lower first), with its weight and p's position input
+// relative to it: the tree's supports() (keepOccupied applies the same way, with leaf indices). `widths`
+// from treeBandWidths (band 0: all zero, one support). At most kMaxSupports (a validated tree with
+// treeBandWidths' widths has no more).
+inline int treeSupports(const format::Grid& g, const float factor[3], const format::TreeNode* nodes, const float* widths,
+                        float band, const float p[3], Support out[kMaxSupports]) {
+    float t[3];
+    for (int k = 0; k < 3; ++k) {
+        if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) return 0;
+        t[k] = gridCoordinate(p[k], g.lower[k], factor[k]);
+    }
+    struct Item {
+        uint32_t node;
+        float w[3];
+        format::TreeBox box;
+    };
+    Item stack[format::kMaxTreeDepth + 2];
+    int top = 0;
+    stack[top] = {0, {1.0f, 1.0f, 1.0f}, {}};
+    for (int k = 0; k < 3; ++k) stack[top].box.hi[k] = g.dims[k];
+    ++top;
+    bool blended[3] = {false, false, false};
+    format::TreeBox boxes[kMaxSupports];
+    int count = 0;
+    while (top > 0) {
+        const Item it = stack[--top];
+        const format::TreeNode& n = nodes[it.node];
+        if (n.axis == format::kTreeLeaf) {
+            if (count == kMaxSupports) continue;
+            out[count].voxel = int64_t(n.child);
+            out[count].weight = it.w[0] * it.w[1] * it.w[2];
+            boxes[count++] = it.box;
+            continue;
+        }
+        const int k = int(n.axis);
+        const float x = t[k] - float(n.split), w = widths[it.node];
+        Item lower = it, upper = it;
+        lower.node = n.child;
+        upper.node = n.child + 1;
+        lower.box.hi[k] = n.split;
+        upper.box.lo[k] = n.split;
+        if (w > 0.0f && x > -w && x < w) {
+            const float above = aboveFaceWeight(x, w);
+            blended[k] = true;
+            upper.w[k] = it.w[k] * above;
+            lower.w[k] = it.w[k] * (1.0f - above);
+            stack[top++] = upper;
+            stack[top++] = lower;
+        } else {
+            stack[top++] = x >= 0.0f ? upper : lower;
+        }
+    }
+    for (int i = 0; i < count; ++i)
+        for (int k = 0; k < 3; ++k) {
+            const float reach = blended[k] ? 1.0f + 2.0f * band : 1.0f;
+            const float q = localInBox(t[k], boxes[i].lo[k], boxes[i].hi[k]);
+            out[i].local[k] = q < -reach ? -reach : (q > reach ? reach : q);
+        }
+    return count;
+}
+
+// How an asset's points find their networks, whichever partition it has: what the runtime and the baker hold.
+struct Partition {
+    format::Grid grid;
+    float factor[3] = {1.0f, 1.0f, 1.0f};  // gridFactor per axis
+    float band = 0.0f;  // the blending band (kFlagBlended), else 0
+    std::vector<format::TreeNode> tree;  // empty: the uniform grid
+    std::vector<float> widths;  // treeBandWidths
+    uint64_t cells = 0;  // voxels or leaves
+
+    Partition() = default;
+    Partition(const format::Grid& g, float blendBand, std::vector<format::TreeNode> nodes, uint32_t leafCount)
+        : grid(g), band(blendBand), tree(std::move(nodes)) {
+        for (int k = 0; k < 3; ++k) factor[k] = gridFactor(g, k);
+        if (!tree.empty()) widths = treeBandWidths(g.dims, tree, band);
+        cells = tree.empty() ? g.voxelCount() : uint64_t(leafCount);
+    }
+    explicit Partition(const format::Asset& a)
+        : Partition(a.grid, (a.header.flags & format::kFlagBlended) ? a.grid.blendBand : 0.0f, a.tree, a.leafCount) {}
+
+    int supports(const float p[3], Support out[kMaxSupports]) const {
+        return tree.empty() ? eval::supports(grid, factor, band, p, out)
+                            : treeSupports(grid, factor, tree.data(), widths.data(), band, p, out);
+    }
+    // The cell holding p without blending, -1 outside.
+    int64_t cellOf(const float p[3]) const {
+        if (!tree.empty()) return treeLeaf(grid, factor, tree.data(), p);
+        return locate(grid, factor, p).voxel;
+    }
+};
 
 // ----- inputs ------------------------------------------------------------------------------------------------
 

@@ -19,7 +19,8 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 1;  // a reader accepts newer minors (new optional sections only); 2.1: blending
+constexpr uint16_t kVersionMinor = 2;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
+                                       // 2.2: the kd-tree partition (TREE)
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
@@ -27,7 +28,10 @@ constexpr uint32_t kFlagDemodulated = 2u;  // divided by the surface's reflectan
 // Neighbouring networks are blended in a band around the voxel faces (Grid::blendBand, nrad/eval.h supports()).
 // A 2.0 reader rejects the flag rather than draw the seams.
 constexpr uint32_t kFlagBlended = 4u;
-constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated | kFlagBlended;
+// The grid's lattice is partitioned by a kd-tree (TREE section) and VOXL indexes its leaves, not the
+// lattice's voxels. A 2.0 or 2.1 reader rejects the flag rather than read leaf indices as voxels.
+constexpr uint32_t kFlagTree = 8u;
+constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated | kFlagBlended | kFlagTree;
 constexpr float kMaxBlendBand = 0.5f;  // the band's half-width, in voxels: bands of opposite faces never overlap
 
 constexpr uint32_t kHeaderSize = 64;
@@ -39,6 +43,8 @@ constexpr uint32_t kMaxHiddenWidth = 256;
 constexpr uint32_t kInputCount = 9;  // position in voxel (3), normal (3), direction (3)
 constexpr uint32_t kOutputCount = 3;  // RGB radiance
 constexpr uint32_t kMaxGridDim = 1024;
+constexpr uint32_t kMaxTreeNodes = 1u << 22;
+constexpr uint32_t kMaxTreeDepth = 48;  // nodes from the root to the deepest leaf, the root not counted
 
 constexpr uint32_t fourcc(char a, char b, char c, char d) {
     return uint32_t(uint8_t(a)) | (uint32_t(uint8_t(b)) << 8) | (uint32_t(uint8_t(c)) << 16) | (uint32_t(uint8_t(d)) << 24);
@@ -48,6 +54,7 @@ constexpr uint32_t kSectionTopology = fourcc('T', 'O', 'P', 'O');
 constexpr uint32_t kSectionVoxels = fourcc('V', 'O', 'X', 'L');
 constexpr uint32_t kSectionWeights = fourcc('W', 'G', 'H', 'T');
 constexpr uint32_t kSectionMetadata = fourcc('M', 'E', 'T', 'A');
+constexpr uint32_t kSectionTree = fourcc('T', 'R', 'E', 'E');
 
 enum class Activation : uint32_t { ReLU = 1 };
 // How the last layer's value y becomes radiance: L = scale * max(0, y), or L = scale * (exp(y) - 1) for
@@ -116,6 +123,27 @@ struct Topology {  // TOPO: u32 inputs, u32 outputs, u32 hiddenLayers, u32 activ
 struct VoxelEntry {
     uint32_t index = 0;  // x + dims[0] * (y + dims[1] * z)
     float scale = 1.0f;
+};
+
+// TREE (with kFlagTree): u32 nodeCount, then nodeCount records of 8 bytes: u32 axis | split << 2, u32 child.
+// Node 0 is the root and covers the whole lattice [0, dims[0]) x [0, dims[1]) x [0, dims[2]) (the grid's
+// voxels as the unit). An internal node (axis 0, 1, 2) cuts its box with the plane at lattice coordinate
+// `split` of that axis, strictly inside the box; its lower child is node `child`, the upper one child + 1,
+// both after the node itself. A leaf (axis kTreeLeaf, split 0) holds its leaf index in `child`: leaves are
+// numbered 0, 1, ... in depth-first order, lower child first. Every node is reached exactly once from the
+// root, no leaf lies deeper than kMaxTreeDepth: the leaves tile the lattice without overlap. A uniform grid is
+// the tree of decode's uniformTree(): its leaf indices are the voxels' linear indices.
+constexpr uint32_t kTreeLeaf = 3;
+struct TreeNode {
+    uint32_t axis = kTreeLeaf;
+    uint32_t split = 0;
+    uint32_t child = 0;
+};
+
+// A leaf's (or node's) box on the lattice: [lo, hi) per axis, in voxels of the grid.
+struct TreeBox {
+    uint32_t lo[3] = {0, 0, 0};
+    uint32_t hi[3] = {0, 0, 0};
 };
 
 // ----- CRC-32 (IEEE 802.3, the zlib/PNG polynomial) ----------------------------------------------------
@@ -202,6 +230,8 @@ enum class DecodeStatus {
     BadVoxels,  // count, ordering, range or scale of the voxel table
     BadWeights,  // wrong size, or a weight that is not finite
     TrailingBytes,  // bytes after the last section
+    BadTree,  // TREE without kFlagTree (or the reverse), or a tree that is cyclic, shared, out of range, too
+              // deep, or whose splits leave an empty or overlapping leaf
 };
 
 inline const char* decodeStatusString(DecodeStatus s) {
@@ -220,6 +250,7 @@ inline const char* decodeStatusString(DecodeStatus s) {
         case DecodeStatus::BadVoxels: return "invalid voxel table";
         case DecodeStatus::BadWeights: return "invalid weights";
         case DecodeStatus::TrailingBytes: return "trailing bytes after the last section";
+        case DecodeStatus::BadTree: return "invalid partition tree";
     }
     return "unknown status";
 }
@@ -232,7 +263,83 @@ struct Asset {
     std::vector<VoxelEntry> voxels;
     std::vector<float> weights;
     std::string metadata;  // JSON text, empty if the section is absent
+    std::vector<TreeNode> tree;  // with kFlagTree: the partition; empty: the uniform grid
+    uint32_t leafCount = 0;  // the tree's leaves (with kFlagTree), else 0
+    // What VOXL indexes: the tree's leaves, or the grid's voxels.
+    uint64_t cellCount() const { return tree.empty() ? grid.voxelCount() : uint64_t(leafCount); }
 };
+
+// Checks a tree against the lattice `dims` (the rules above) and counts its leaves; false if any rule is
+// broken. `boxes`, if given, receives every leaf's lattice box in leaf order.
+inline bool validateTree(const uint32_t dims[3], const std::vector<TreeNode>& nodes, uint32_t& leafCount,
+                         std::vector<TreeBox>* boxes = nullptr) {
+    leafCount = 0;
+    if (nodes.empty() || nodes.size() > kMaxTreeNodes) return false;
+    if (boxes) boxes->clear();
+    std::vector<uint8_t> seen(nodes.size(), 0);
+    struct Item {
+        uint32_t node, depth;
+        TreeBox box;
+    };
+    std::vector<Item> stack;
+    Item root{0, 0, {}};
+    for (int k = 0; k < 3; ++k) root.box.hi[k] = dims[k];
+    stack.push_back(root);
+    size_t reached = 0;
+    while (!stack.empty()) {
+        Item it = stack.back();
+        stack.pop_back();
+        if (seen[it.node]) return false;  // shared or cyclic
+        seen[it.node] = 1;
+        ++reached;
+        const TreeNode& n = nodes[it.node];
+        if (n.axis == kTreeLeaf) {
+            if (n.split != 0 || n.child != leafCount) return false;  // leaves numbered in depth-first order
+            ++leafCount;
+            if (boxes) boxes->push_back(it.box);
+            continue;
+        }
+        if (n.axis > 2 || it.depth >= kMaxTreeDepth) return false;
+        if (!(n.split > it.box.lo[n.axis] && n.split < it.box.hi[n.axis])) return false;  // an empty side
+        if (n.child <= it.node || uint64_t(n.child) + 1 >= nodes.size()) return false;  // after the node, in range
+        Item lower{n.child, it.depth + 1, it.box}, upper{n.child + 1, it.depth + 1, it.box};
+        lower.box.hi[n.axis] = n.split;
+        upper.box.lo[n.axis] = n.split;
+        stack.push_back(upper);  // the lower child is visited first
+        stack.push_back(lower);
+    }
+    return reached == nodes.size();  // no node left unreached
+}
+
+// The tree whose leaves are the uniform grid's voxels, leaf index = linear voxel index x + dims[0] (y + dims[1] z):
+// z is halved down to single slabs first, then y, then x, at the midpoints (lower half rounded down).
+inline std::vector<TreeNode> uniformTree(const uint32_t dims[3]) {
+    std::vector<TreeNode> nodes(1);
+    uint32_t leaves = 0;
+    struct Build {
+        std::vector<TreeNode>& nodes;
+        uint32_t& leaves;
+        void operator()(uint32_t at, TreeBox b) {
+            for (int k = 2; k >= 0; --k) {
+                if (b.hi[k] - b.lo[k] < 2) continue;
+                const uint32_t mid = b.lo[k] + (b.hi[k] - b.lo[k]) / 2, child = uint32_t(nodes.size());
+                nodes.resize(nodes.size() + 2);
+                nodes[at] = {uint32_t(k), mid, child};
+                TreeBox lower = b, upper = b;
+                lower.hi[k] = mid;
+                upper.lo[k] = mid;
+                (*this)(child, lower);
+                (*this)(child + 1, upper);
+                return;
+            }
+            nodes[at] = {kTreeLeaf, 0, leaves++};
+        }
+    };
+    TreeBox root;
+    for (int k = 0; k < 3; ++k) root.hi[k] = dims[k];
+    Build{nodes, leaves}(0, root);
+    return nodes;
+}
 
 namespace detail {
 inline uint16_t rd16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
@@ -279,7 +386,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     const uint8_t* voxl = nullptr;
     const uint8_t* wght = nullptr;
     const uint8_t* meta = nullptr;
-    uint64_t gridSize = 0, topoSize = 0, voxlSize = 0, wghtSize = 0, metaSize = 0;
+    const uint8_t* tree = nullptr;
+    uint64_t gridSize = 0, topoSize = 0, voxlSize = 0, wghtSize = 0, metaSize = 0, treeSize = 0;
     uint64_t expectedOffset = (tableEnd + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
     uint64_t previousEnd = tableEnd;
     for (uint32_t i = 0; i < h.sectionCount; ++i) {
@@ -301,11 +409,11 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         if (crc32(data + s.offset, size_t(s.size)) != s.crc) return DecodeStatus::SectionCrcMismatch;
         expectedOffset = (s.offset + s.size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
         const uint8_t*& slot = s.type == kSectionGrid ? grid : s.type == kSectionTopology ? topo : s.type == kSectionVoxels ? voxl
-                             : s.type == kSectionWeights ? wght : meta;
+                             : s.type == kSectionWeights ? wght : s.type == kSectionTree ? tree : meta;
         uint64_t& slotSize = s.type == kSectionGrid ? gridSize : s.type == kSectionTopology ? topoSize : s.type == kSectionVoxels ? voxlSize
-                             : s.type == kSectionWeights ? wghtSize : metaSize;
+                             : s.type == kSectionWeights ? wghtSize : s.type == kSectionTree ? treeSize : metaSize;
         if (s.type != kSectionGrid && s.type != kSectionTopology && s.type != kSectionVoxels && s.type != kSectionWeights &&
-            s.type != kSectionMetadata) {
+            s.type != kSectionMetadata && s.type != kSectionTree) {
             // Unknown sections are allowed (newer minor versions) but must not repeat known ones.
             continue;
         }
@@ -353,14 +461,31 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         if (t.hiddenWidths[l] == 0 || t.hiddenWidths[l] > kMaxHiddenWidth) return DecodeStatus::BadTopology;
     }
 
+    // The partition: the uniform grid, or (kFlagTree) a kd-tree over its lattice whose leaves VOXL indexes.
+    std::vector<TreeNode> nodes;
+    uint32_t leafCount = 0;
+    if (((h.flags & kFlagTree) != 0) != (tree != nullptr)) return DecodeStatus::BadTree;
+    if (tree) {
+        if (treeSize < 4) return DecodeStatus::BadTree;
+        const uint32_t count = rd32(tree);
+        if (count == 0 || count > kMaxTreeNodes || treeSize != 4 + 8 * uint64_t(count)) return DecodeStatus::BadTree;
+        nodes.resize(count);
+        for (uint32_t i = 0; i < count; ++i) {
+            const uint32_t word = rd32(tree + 4 + 8 * uint64_t(i));
+            nodes[i] = {word & 3u, word >> 2, rd32(tree + 8 + 8 * uint64_t(i))};
+        }
+        if (!validateTree(g.dims, nodes, leafCount)) return DecodeStatus::BadTree;
+    }
+    const uint64_t cells = tree ? uint64_t(leafCount) : g.voxelCount();
+
     if (voxlSize < 4) return DecodeStatus::BadVoxels;
     uint32_t occupied = rd32(voxl);
-    if (occupied == 0 || occupied > g.voxelCount() || voxlSize != 4 + 8 * uint64_t(occupied)) return DecodeStatus::BadVoxels;
+    if (occupied == 0 || occupied > cells || voxlSize != 4 + 8 * uint64_t(occupied)) return DecodeStatus::BadVoxels;
     std::vector<VoxelEntry> voxels(occupied);
     for (uint32_t i = 0; i < occupied; ++i) {
         voxels[i].index = rd32(voxl + 4 + 8 * uint64_t(i));
         voxels[i].scale = rdf32(voxl + 8 + 8 * uint64_t(i));
-        if (voxels[i].index >= g.voxelCount() || (i > 0 && voxels[i].index <= voxels[i - 1].index) ||
+        if (voxels[i].index >= cells || (i > 0 && voxels[i].index <= voxels[i - 1].index) ||
             !std::isfinite(voxels[i].scale) || !(voxels[i].scale > 0.0f))
             return DecodeStatus::BadVoxels;
     }
@@ -380,6 +505,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     out.voxels = std::move(voxels);
     out.weights = std::move(weights);
     out.metadata = meta ? std::string(reinterpret_cast<const char*>(meta), size_t(metaSize)) : std::string();
+    out.tree = std::move(nodes);
+    out.leafCount = leafCount;
     return DecodeStatus::Ok;
 }
 
@@ -400,8 +527,8 @@ inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i =
 
 // Encodes an asset (header.flags as given, version and sizes from this file). Preconditions (the caller's
 // job; encode() does not validate): weights.size() ==
-// voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid, all values
-// finite, scales > 0. The output decodes to the same asset (weights rounded to the encoding).
+// voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid (the tree's leaves
+// with kFlagTree, whose tree is valid), all values finite, scales > 0. The output decodes to the same asset (weights rounded to the encoding).
 inline std::vector<uint8_t> encode(const Asset& a) {
     using namespace detail;
     std::vector<std::vector<uint8_t>> sections;
@@ -449,7 +576,17 @@ inline std::vector<uint8_t> encode(const Asset& a) {
         sections.push_back(std::move(s));
         types.push_back(kSectionWeights);
     }
-    if (!a.metadata.empty()) {
+    if (a.header.flags & kFlagTree) {
+        std::vector<uint8_t> s;
+        wr32(s, uint32_t(a.tree.size()));
+        for (const TreeNode& n : a.tree) {
+            wr32(s, n.axis | (n.split << 2));
+            wr32(s, n.child);
+        }
+        sections.push_back(std::move(s));
+        types.push_back(kSectionTree);
+    }
+    if (!a.metadata.empty()) {  // last, so that a borrowed buffer's metadata is its tail
         sections.emplace_back(a.metadata.begin(), a.metadata.end());
         types.push_back(kSectionMetadata);
     }
@@ -459,7 +596,7 @@ inline std::vector<uint8_t> encode(const Asset& a) {
     out[8] = uint8_t(kVersionMajor);
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
-    const uint16_t minor = (a.header.flags & kFlagBlended) ? 1 : 0;
+    const uint16_t minor = (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);

@@ -95,9 +95,13 @@ typedef struct NradAssetInfo {
 /* contentFlags: points within blendBand voxels of an interior voxel face are shaded by the networks on both
  * sides, blended continuously (docs/format.md, "Blended supports"); up to 8 evaluations per point. */
 #define NRAD_CONTENT_BLENDED 4u
+/* contentFlags: the grid is the lattice of an adaptive kd-tree partition (format 2.2): occupiedVoxels counts
+ * the networks of its leaves, nradGetOccupiedVoxel returns leaf indices (docs/format.md, "Partition tree"). */
+#define NRAD_CONTENT_TREE 8u
 
 NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
-/* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels. */
+/* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels (with NRAD_CONTENT_TREE:
+ * the index of its tree leaf). */
 NradStatus nradGetOccupiedVoxel(NradAsset asset, uint32_t i, uint32_t* voxelIndex);
 /* The metadata JSON (not NUL-terminated) and its length; empty if the asset has none. Valid while the
  * handle lives. */

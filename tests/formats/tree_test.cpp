@@ -1,0 +1,277 @@
+// The kd-tree partition (format 2.2, kFlagTree): the uniform tree is the grid bit for bit (supports, weights,
+// position inputs), any tree's blend weights are a partition of unity that is continuous across leaves of
+// different sizes, and the decoder refuses cyclic, shared, out-of-range, overlapping, unreached and too deep
+// trees, a tree without its flag and a flag without its tree.
+#include <nrad/eval.h>
+#include <nrad/format.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "support/test_trees.h"
+
+namespace nrad::format {
+namespace {
+
+Grid latticeGrid(uint32_t x, uint32_t y, uint32_t z) {
+    Grid g;
+    const uint32_t d[3] = {x, y, z};
+    for (int k = 0; k < 3; ++k) {
+        g.lower[k] = -1.0f - 0.5f * float(k);
+        g.upper[k] = 2.0f + 0.25f * float(k);
+        g.dims[k] = d[k];
+    }
+    return g;
+}
+
+// Random points in (and slightly around) the grid, a third of them placed on or near lattice planes.
+std::vector<std::array<float, 3>> probePoints(const Grid& g, size_t count, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::vector<std::array<float, 3>> out;
+    for (size_t i = 0; i < count; ++i) {
+        std::array<float, 3> p;
+        for (int k = 0; k < 3; ++k) {
+            const float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+            float t = u(rng) * float(g.dims[k]);
+            if (rng() % 3 == 0) t = std::round(t) + (u(rng) - 0.5f) * 0.3f;  // near a plane
+            if (rng() % 11 == 0) t = std::round(t);  // on one
+            p[size_t(k)] = g.lower[k] + size * t;
+        }
+        if (rng() % 50 == 0) p[0] = g.upper[0] + 0.1f;  // outside
+        out.push_back(p);
+    }
+    return out;
+}
+
+TEST(Tree, UniformTreeIsTheGridBitForBit) {
+    for (auto d : {std::array<uint32_t, 3>{1, 1, 1}, {3, 2, 5}, {4, 4, 4}, {7, 1, 3}, {2, 9, 2}}) {
+        const Grid g = latticeGrid(d[0], d[1], d[2]);
+        const std::vector<TreeNode> tree = uniformTree(g.dims);
+        uint32_t leaves = 0;
+        std::vector<TreeBox> boxes;
+        ASSERT_TRUE(validateTree(g.dims, tree, leaves, &boxes));
+        ASSERT_EQ(leaves, g.voxelCount());
+        EXPECT_EQ(tree.size(), 2 * g.voxelCount() - 1);
+        for (uint32_t v = 0; v < leaves; ++v) {
+            const uint32_t c[3] = {v % d[0], (v / d[0]) % d[1], v / (d[0] * d[1])};
+            for (int k = 0; k < 3; ++k) {
+                EXPECT_EQ(boxes[v].lo[k], c[k]);
+                EXPECT_EQ(boxes[v].hi[k], c[k] + 1);
+            }
+        }
+        for (float band : {0.0f, 0.0625f, 0.25f, 0.5f}) {
+            const eval::Partition grid(g, band, {}, 0), kd(g, band, tree, leaves);
+            for (const auto& p : probePoints(g, 4000, d[0] * 7 + d[2])) {
+                eval::Support a[eval::kMaxSupports], b[eval::kMaxSupports];
+                const int na = grid.supports(p.data(), a), nb = kd.supports(p.data(), b);
+                ASSERT_EQ(na, nb);
+                for (int i = 0; i < na; ++i) {
+                    ASSERT_EQ(a[i].voxel, b[i].voxel);
+                    ASSERT_EQ(std::memcmp(&a[i].weight, &b[i].weight, 4), 0) << band;
+                    ASSERT_EQ(std::memcmp(a[i].local, b[i].local, 12), 0) << band;
+                }
+                EXPECT_EQ(grid.cellOf(p.data()), kd.cellOf(p.data()));
+            }
+        }
+    }
+}
+
+TEST(Tree, BlendWeightsArePartitionsOfUnityAcrossLeavesOfDifferentSizes) {
+    const Grid g = latticeGrid(16, 8, 12);
+    for (uint32_t seed = 1; seed <= 6; ++seed) {
+        const std::vector<TreeNode> tree = test::randomTree(g.dims, 40 + 20 * seed, seed);
+        uint32_t leaves = 0;
+        std::vector<TreeBox> boxes;
+        ASSERT_TRUE(validateTree(g.dims, tree, leaves, &boxes));
+        const float band = 0.25f;
+        const eval::Partition kd(g, band, tree, leaves);
+        // Widths: at most band x the extent of every leaf touching the plane.
+        std::mt19937 rng(seed);
+        std::vector<float> value(leaves);
+        for (float& v : value) v = float(rng() % 1000) / 100.0f;
+        auto field = [&](const float p[3], int& n) {
+            eval::Support s[eval::kMaxSupports];
+            n = kd.supports(p, s);
+            double sum = 0.0, f = 0.0;
+            for (int i = 0; i < n; ++i) {
+                sum += s[i].weight;
+                f += double(s[i].weight) * value[size_t(s[i].voxel)];
+                const TreeBox& b = boxes[size_t(s[i].voxel)];
+                for (int k = 0; k < 3; ++k) {  // the leaf reaches p within its bands
+                    EXPECT_LE(std::abs(s[i].local[k]), 1.0f + 2.0f * band + 1e-5f);
+                    const float t = (p[k] - g.lower[k]) * eval::gridFactor(g, k);
+                    const float extent = float(b.hi[k] - b.lo[k]);
+                    EXPECT_GE(t, float(b.lo[k]) - band * extent - 1e-4f);
+                    EXPECT_LE(t, float(b.hi[k]) + band * extent + 1e-4f);
+                }
+                if (i > 0) {
+                    EXPECT_LT(s[i - 1].voxel, s[i].voxel);
+                }
+            }
+            if (n > 0) {
+                EXPECT_NEAR(sum, 1.0, 1e-6);
+            }
+            return f;
+        };
+        for (const auto& p : probePoints(g, 3000, seed)) {
+            int n = 0;
+            const double f = field(p.data(), n);
+            EXPECT_LE(n, eval::kMaxSupports);
+            if (n == 0) continue;
+            // Continuity: a step of 1e-4 voxels changes the blended field by at most its slope bound
+            // (smoothstep 1.5 / (2 w) per voxel per plane, w >= band; 3 axes, values below 10).
+            for (int k = 0; k < 3; ++k) {
+                std::array<float, 3> q = p;
+                q[size_t(k)] += 1e-4f / eval::gridFactor(g, k);
+                int m = 0;
+                const double h = field(q.data(), m);
+                if (m == 0) continue;
+                EXPECT_LE(std::abs(h - f), 10.0 * 3.0 * 1.5 / (2.0 * band) * 1e-4 * 1.05 + 1e-4) << seed;
+            }
+        }
+    }
+}
+
+std::vector<uint8_t> treeAssetBytes(const std::vector<TreeNode>& tree, uint32_t leaves, uint32_t flags = kFlagTree) {
+    Asset a;
+    a.grid = latticeGrid(4, 4, 4);
+    a.header.flags = kFlagScatteredRadiance | flags;
+    a.topology.hiddenWidths = {2};
+    a.tree = tree;
+    for (uint32_t i = 0; i < leaves; i += 2) a.voxels.push_back({i, 1.0f});
+    a.weights.assign(a.voxels.size() * a.topology.parameterCount(), 0.125f);
+    return encode(a);
+}
+
+TEST(Tree, RoundTripsAsVersionTwoPointTwo) {
+    const Grid g = latticeGrid(4, 4, 4);
+    const std::vector<TreeNode> tree = test::randomTree(g.dims, 20, 3);
+    uint32_t leaves = 0;
+    ASSERT_TRUE(validateTree(g.dims, tree, leaves));
+    const std::vector<uint8_t> b = treeAssetBytes(tree, leaves);
+    EXPECT_EQ(b[10], 2);  // minor version
+    Asset out;
+    ASSERT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    EXPECT_EQ(out.leafCount, leaves);
+    ASSERT_EQ(out.tree.size(), tree.size());
+    for (size_t i = 0; i < tree.size(); ++i) {
+        EXPECT_EQ(out.tree[i].axis, tree[i].axis);
+        EXPECT_EQ(out.tree[i].split, tree[i].split);
+        EXPECT_EQ(out.tree[i].child, tree[i].child);
+    }
+    EXPECT_EQ(out.cellCount(), leaves);
+}
+
+TEST(Tree, DecoderRefusesInvalidTrees) {
+    const uint32_t dims[3] = {4, 4, 4};
+    const std::vector<TreeNode> good = uniformTree(dims);  // 64 leaves, 127 nodes
+    uint32_t leaves = 0;
+    ASSERT_TRUE(validateTree(dims, good, leaves));
+    Asset out;
+    auto status = [&](const std::vector<TreeNode>& t, uint32_t flags = kFlagTree) {
+        const std::vector<uint8_t> b = treeAssetBytes(t, 4, flags);
+        return decode(b.data(), b.size(), out);
+    };
+    ASSERT_EQ(status(good), DecodeStatus::Ok);
+    std::vector<TreeNode> t = good;
+    t[0].child = 0;  // a cycle back to the root
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t[2] = t[1];  // both children of the root share one subtree
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t[0].child = uint32_t(t.size() - 1);  // the upper child out of range
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t[0].split = 4;  // on the box's face: an empty child
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t[1].split = 3;  // the lower child of z < 2 cut at z = 3: outside its box, its leaves would overlap the upper's
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t[0].axis = 7 & 3;  // a leaf where a node should be: 126 nodes unreached
+    t[0].child = 0;
+    t[0].split = 0;
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    std::swap(t[t.size() - 1].child, t[t.size() - 2].child);  // leaves out of depth-first order
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    t = good;
+    t.back().split = 1;  // a leaf with split bits set
+    EXPECT_EQ(status(t), DecodeStatus::BadTree);
+    // Flag and section go together.
+    {  // a TREE section without the flag (the header's flag cleared, its CRC fixed)
+        std::vector<uint8_t> b = treeAssetBytes(good, 4);
+        b[12] = uint8_t(b[12] & ~kFlagTree);
+        const uint32_t crc = crc32(b.data(), 60);
+        for (int i = 0; i < 4; ++i) b[size_t(60 + i)] = uint8_t(crc >> (8 * i));
+        EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTree);
+    }
+    {
+        Asset a;
+        a.grid = latticeGrid(4, 4, 4);
+        a.header.flags = kFlagScatteredRadiance | kFlagTree;  // the flag, no nodes: encode writes an empty TREE
+        a.topology.hiddenWidths = {2};
+        a.voxels = {{0, 1.0f}};
+        a.weights.assign(a.topology.parameterCount(), 0.125f);
+        const std::vector<uint8_t> b = encode(a);
+        EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTree);
+    }
+    // Too deep: a chain of 49 splits along x of a 64-voxel lattice.
+    {
+        const uint32_t wide[3] = {64, 1, 1};
+        std::vector<TreeNode> chain;
+        uint32_t leaf = 0;
+        chain.push_back({});
+        uint32_t at = 0;
+        for (uint32_t i = 0; i < 49; ++i) {
+            const uint32_t c = uint32_t(chain.size());
+            chain.resize(chain.size() + 2);
+            chain[at] = {0, i + 1, c};
+            chain[c] = {kTreeLeaf, 0, leaf++};
+            at = c + 1;
+        }
+        chain[at] = {kTreeLeaf, 0, leaf++};
+        uint32_t n = 0;
+        EXPECT_FALSE(validateTree(wide, chain, n));
+        // 48 splits are fine.
+        std::vector<TreeNode> shorter;
+        shorter.push_back({});
+        leaf = 0;
+        at = 0;
+        for (uint32_t i = 0; i < 48; ++i) {
+            const uint32_t c = uint32_t(shorter.size());
+            shorter.resize(shorter.size() + 2);
+            shorter[at] = {0, i + 1, c};
+            shorter[c] = {kTreeLeaf, 0, leaf++};
+            at = c + 1;
+        }
+        shorter[at] = {kTreeLeaf, 0, leaf++};
+        EXPECT_TRUE(validateTree(wide, shorter, n));
+        EXPECT_EQ(n, 49u);
+    }
+    // VOXL indexes leaves: an index past the last leaf is refused.
+    {
+        const std::vector<TreeNode> small = test::randomTree(dims, 5, 1);
+        Asset a;
+        a.grid = latticeGrid(4, 4, 4);
+        a.header.flags = kFlagScatteredRadiance | kFlagTree;
+        a.topology.hiddenWidths = {2};
+        a.tree = small;
+        a.voxels = {{5, 1.0f}};
+        a.weights.assign(a.topology.parameterCount(), 0.125f);
+        std::vector<uint8_t> b = encode(a);
+        EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadVoxels);
+        a.voxels = {{4, 1.0f}};
+        b = encode(a);
+        EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    }
+}
+
+}  // namespace
+}  // namespace nrad::format
