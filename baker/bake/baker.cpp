@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
@@ -99,12 +101,49 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     result.sampleCount = samples.size();
     result.timings.sampling = since(t1);
 
-    // The samples of each voxel's network (its own, plus its neighbours' within the blending band, in the
-    // fixed sample order), then train every occupied voxel in parallel.
+    format::Topology topology;
+    topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
+    topology.weightEncoding = settings.encoding;
+    topology.outputTransform =
+        settings.train.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+
+    // The samples of each cell's network (its own, plus its neighbours' within the blending band, in the
+    // fixed sample order), then train every occupied cell in parallel. Cells are the grid's voxels, or with a
+    // budget the leaves of the adaptive tree, refined on these very samples.
     const float band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
-    const std::vector<std::vector<VoxelSample>> byVoxel = samplesByNetwork(grid, band, samples);
+    std::vector<std::vector<VoxelSample>> byVoxel;
+    const bool adaptive = settings.partition.budgetBytes > 0;
+    format::Grid lattice = grid.grid();
+    MetadataReserve reserve;
+    if (adaptive) {
+        lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
+        std::vector<float> learned(samples.size());
+        for (size_t i = 0; i < samples.size(); ++i) {
+            const glm::vec3 y = settings.train.demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
+            learned[i] = float(std::log1p(std::max(0.0, luminance(y))));
+        }
+        // The metadata: what it holds without the per-network list, and at most 16 bytes per entry of that list.
+        BakeResult none;
+        reserve = {assetMetadata(scene, settings, none).size() + 64, 16};
+        if (!settings.metadata) reserve = {};
+        result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve);
+        const AdaptivePartition& ap = result.partition;
+        const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
+        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](const TrainingSample& s) {
+            const format::TreeBox& b = ap.leaves[ap.leafOfSample[size_t(&s - samples.data())]].box;
+            glm::vec3 local;
+            for (int k = 0; k < 3; ++k) {
+                const float t = std::clamp(eval::gridCoordinate(s.position[k], lattice.lower[k], partition.factor[k]), 0.0f,
+                                           float(lattice.dims[k]));
+                local[k] = eval::clampUnit(eval::localInBox(t, b.lo[k], b.hi[k]));
+            }
+            return local;
+        });
+    } else {
+        byVoxel = samplesByNetwork(grid, band, samples);
+    }
     std::vector<uint32_t> occupied;
-    for (uint32_t v = 0; v < grid.voxelCount(); ++v)
+    for (uint32_t v = 0; v < uint32_t(byVoxel.size()); ++v)
         if (!byVoxel[v].empty()) occupied.push_back(v);
     auto t2 = std::chrono::steady_clock::now();
     result.voxels.resize(occupied.size());
@@ -121,20 +160,28 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     format::Asset& a = result.asset;
     a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
     if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
-    a.grid = grid.grid();
+    a.grid = lattice;
     if (band > 0.0f) {
         a.header.flags |= format::kFlagBlended;
         a.grid.blendBand = band;
     }
-    a.topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
-    a.topology.weightEncoding = settings.encoding;
-    a.topology.outputTransform =
-        settings.train.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+    if (adaptive) {
+        a.header.flags |= format::kFlagTree;
+        a.tree = result.partition.tree;
+        a.leafCount = result.partition.leafCount;
+    }
+    a.topology = topology;
     for (const VoxelTrainResult& v : result.voxels) {
         a.voxels.push_back({v.voxel, v.scale});
         a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
     }
     if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
+    if (adaptive) {
+        const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size());
+        if (a.metadata.size() > reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
+            throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
+                                   std::to_string(settings.partition.budgetBytes));
+    }
     return result;
 }
 
@@ -161,6 +208,11 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"weight_decays", t.weightDecays},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
+    if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
+        j["bake"]["partition"] = {{"kind", "kd-tree"},
+                                  {"budget_bytes", settings.partition.budgetBytes},
+                                  {"levels", settings.partition.levels},
+                                  {"min_leaf_samples", settings.partition.minLeafSamples}};
     nlohmann::json engine = nlohmann::json::array();
     for (size_t i = 0; i < scene.lights.size(); ++i)
         if (scene.lights[i].runtimeDirect) engine.push_back({{"light", i}, {"name", scene.lights[i].name}});

@@ -8,6 +8,7 @@
 
 #include <nrad/format.h>
 
+#include "baker/bake/partition.h"
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_samples.h"
 #include "baker/scene/scene.h"
@@ -19,6 +20,9 @@ struct BakeSettings {
     // Half-width, in voxels, of the band around interior voxel faces where neighbouring networks are blended
     // (nrad/eval.h supports()); each network trains on its voxel plus this margin. 0: no blending, seams.
     float blendBand = 0.0625f;
+    // With a byte budget, an adaptive kd-tree partition replaces the grid (partition.h); `grid` then only sets
+    // the per-voxel floor of training samples.
+    PartitionSettings partition;
     SampleSettings samples;
     TrainSettings train;
     format::WeightEncoding encoding = format::WeightEncoding::Float16;
@@ -35,7 +39,8 @@ struct BakeTimings {
 
 struct BakeResult {
     format::Asset asset;
-    std::vector<VoxelTrainResult> voxels;  // occupied voxels, in index order
+    std::vector<VoxelTrainResult> voxels;  // occupied voxels (tree: leaves with surface), in index order
+    AdaptivePartition partition;  // with a budget: the tree, its leaves and what refining it gained
     SampleStats sampleStats;
     size_t sampleCount = 0;
     double surfaceArea = 0.0;

@@ -47,23 +47,31 @@ double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& refere
     return e / 3.0;
 }
 
-std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples) {
-    std::vector<std::vector<VoxelSample>> out(grid.voxelCount());
-    std::vector<uint8_t> occupied(grid.voxelCount(), 0);
-    for (const TrainingSample& s : samples) occupied[s.voxel] = 1;
-    const format::Grid& g = grid.grid();
-    const float factor[3] = {eval::gridFactor(g, 0), eval::gridFactor(g, 1), eval::gridFactor(g, 2)};
-    for (const TrainingSample& s : samples) {
+std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& partition, const std::vector<uint32_t>& cellOfSample,
+                                                       const std::vector<TrainingSample>& samples,
+                                                       const std::function<glm::vec3(const TrainingSample&)>& ownPosition) {
+    std::vector<std::vector<VoxelSample>> out(size_t(partition.cells));
+    std::vector<uint8_t> occupied(size_t(partition.cells), 0);
+    for (uint32_t c : cellOfSample) occupied[c] = 1;
+    for (size_t i = 0; i < samples.size(); ++i) {
+        const TrainingSample& s = samples[i];
         const float p[3] = {s.position.x, s.position.y, s.position.z};
         eval::Support sup[eval::kMaxSupports];
-        int count = eval::supports(g, factor, band, p, sup);
+        int count = partition.supports(p, sup);
         count = eval::keepOccupied(sup, count, [&](int64_t v) { return occupied[size_t(v)] != 0; });
         for (int k = 0; k < count; ++k)
             out[size_t(sup[k].voxel)].push_back({&s, sup[k].weight, glm::vec3(sup[k].local[0], sup[k].local[1], sup[k].local[2])});
-        if (count == 0)  // rounded just outside the grid (training_samples.cpp keeps its piece's voxel): there
-            out[s.voxel].push_back({&s, 1.0f, grid.positionInVoxel(s.position, s.voxel)});
+        if (count == 0)  // rounded just outside the box (training_samples.cpp keeps its piece's voxel): its own cell
+            out[cellOfSample[i]].push_back({&s, 1.0f, ownPosition(s)});
     }
     return out;
+}
+
+std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples) {
+    std::vector<uint32_t> own(samples.size());
+    for (size_t i = 0; i < samples.size(); ++i) own[i] = samples[i].voxel;
+    return samplesByNetwork(eval::Partition(grid.grid(), band, {}, 0), own, samples,
+                            [&](const TrainingSample& s) { return grid.positionInVoxel(s.position, s.voxel); });
 }
 
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,

@@ -5,10 +5,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <nrad/eval.h>
 #include <nrad/format.h>
 
 #include "baker/bake/network.h"
@@ -82,6 +84,11 @@ struct VoxelSample {
 // eval::supports() and keepOccupied(), where a voxel is occupied when it holds samples of its own. Indexed
 // by voxel; the order is the samples' order.
 std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples);
+// The same for any partition (the grid or a kd-tree): cellOfSample[i] is sample i's own cell (a cell is
+// occupied when it holds one), ownPosition its position input there when it lies just outside the box.
+std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& partition, const std::vector<uint32_t>& cellOfSample,
+                                                       const std::vector<TrainingSample>& samples,
+                                                       const std::function<glm::vec3(const TrainingSample&)>& ownPosition);
 // Radiance from the network's outputs.
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]);
 // relMSE of one prediction against its reference (mean over the three channels).

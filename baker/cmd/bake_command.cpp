@@ -1,4 +1,6 @@
 // `nrad bake`: glTF scene -> .nrad asset.
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -59,6 +61,8 @@ struct BakeOptions {
     int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
     float learningRate = 0.01f, blendBand = defaults().blendBand;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
+    std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
+    uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
     bool quiet = false, noMetadata = false, noDemodulate = false;
     LightingOptions lighting;
 };
@@ -87,13 +91,30 @@ bool parseHidden(const std::string& s, std::vector<int>& out) {
     return out.size() <= format::kMaxHiddenLayers;
 }
 
+// "65536", "64K", "64KB", "1M", "1MB" (K = 1024 bytes); at most 4 GB.
+bool parseBytes(const std::string& s, uint64_t& out) {
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || end == s.c_str() || !(v > 0.0)) return false;
+    std::string unit(end);
+    for (char& c : unit) c = char(std::toupper(static_cast<unsigned char>(c)));
+    double scale = 1.0;
+    if (unit == "K" || unit == "KB" || unit == "KIB") scale = 1024.0;
+    else if (unit == "M" || unit == "MB" || unit == "MIB") scale = 1024.0 * 1024.0;
+    else if (!unit.empty() && unit != "B") return false;
+    const double bytes = std::floor(v * scale);
+    if (!(bytes >= 1.0 && bytes <= 4294967296.0)) return false;
+    out = uint64_t(bytes);
+    return true;
+}
+
 int usage(const std::string& what) {
     std::fprintf(stderr, "nrad bake: %s\n", what.c_str());
     return kExitUsage;
 }
 
 int runBake(BakeOptions o, CLI::App* cmd) {
-    bool configEnvironment = false, configLighting = false;
+    bool configEnvironment = false, configLighting = false, configPoints = false;
     // A config file supplies defaults; flags given on the command line win.
     if (!o.config.empty()) {
         nlohmann::json cfg;
@@ -108,10 +129,16 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
                                           "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
                                           "blend_band", "weight_decay", "environment", "environment_intensity",
-                                          "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct"};
+                                          "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct",
+                                          "budget", "levels", "min_leaf_samples"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
+            configPoints = cfg.contains("points");
+            if (cfg.contains("budget") && cmd->count("--budget") == 0)
+                o.budget = cfg["budget"].is_number_integer() ? std::to_string(cfg["budget"].get<uint64_t>()) : cfg["budget"].get<std::string>();
+            take("levels", "--levels", o.levels);
+            take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
             if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
                 o.grid = std::to_string(cfg["grid"].get<int>());
             else
@@ -178,6 +205,28 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.blendBand = o.blendBand;
     if (!parseFloats(o.weightDecay, s.train.weightDecays))
         return usage("--weight-decay " + o.weightDecay + ": expected 1 to 8 comma-separated values >= 0");
+    if (!o.budget.empty() && !parseBytes(o.budget, s.partition.budgetBytes))
+        return usage("--budget " + o.budget + ": expected a size in bytes, optionally with K or M (1024-based), e.g. 64K");
+    if (s.partition.budgetBytes > 0) {  // refused before any work when not even one network fits
+        format::Topology t;
+        t.hiddenWidths.assign(s.train.shape.hidden.begin(), s.train.shape.hidden.end());
+        t.weightEncoding = s.encoding;
+        const uint64_t smallest = format::encodedSize(t, 1, 1, 0);
+        if (s.partition.budgetBytes < smallest)
+            return usage("--budget " + o.budget + ": below the smallest asset of one network (" + std::to_string(smallest) + " bytes)");
+    }
+    if (o.levels < 1 || o.levels > 10) return usage("--levels: expected 1 to 10 (2^levels voxels along the longest axis)");
+    if (o.minLeafSamples < 16) return usage("--min-leaf-samples: expected at least 16");
+    s.partition.levels = o.levels;
+    s.partition.minLeafSamples = o.minLeafSamples;
+    // With a budget and no --points: enough points for the networks it can pay for (about 400 each).
+    if (s.partition.budgetBytes > 0 && cmd->count("--points") == 0 && !configPoints) {
+        format::Topology t;
+        t.hiddenWidths.assign(s.train.shape.hidden.begin(), s.train.shape.hidden.end());
+        t.weightEncoding = s.encoding;
+        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
+        o.points = uint32_t(std::clamp<uint64_t>(networks * 400, o.points, 20000000));
+    }
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -203,7 +252,13 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.lightingJson = lightingJson;
     double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
-    BakeResult r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
+    BakeResult r;
+    try {
+        r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
+    } catch (const std::runtime_error& e) {  // a budget below the smallest asset
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitUsage;
+    }
 
     auto t3 = std::chrono::steady_clock::now();
     std::vector<uint8_t> bytes = format::encode(r.asset);
@@ -230,16 +285,47 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     if (!r.voxels.empty()) meanErr /= double(r.voxels.size());
     for (const VoxelTrainResult& v : r.voxels)
         for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
-    std::printf("baked %s -> %s: %zu bytes, %zu of %u voxels occupied, %zu samples (%llu floor, %llu dropped, %llu "
+    std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu dropped, %llu "
                 "non-finite paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
                 "time: load %.2f s, setup %.2f s, sampling %.2f s, training %.2f s, writing %.3f s\n",
-                o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), s.grid.x * s.grid.y * s.grid.z, r.sampleCount,
+                o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), unsigned(r.asset.cellCount()),
+                r.asset.tree.empty() ? "voxels" : "leaves", r.sampleCount,
                 (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.droppedSamples,
                 (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
                 loadSeconds, r.timings.setup, r.timings.sampling, r.timings.training, writeSeconds);
 
+    const AdaptivePartition& ap = r.partition;
+    if (s.partition.budgetBytes > 0) {
+        uint32_t deepest = 0;
+        for (const PartitionLeafInfo& l : ap.leaves) deepest = std::max(deepest, l.depth);
+        std::printf("partition: kd-tree of %u leaves (%u with surface, depth up to %u) on a %ux%ux%u lattice, %zu nodes; "
+                    "%llu of %llu budget bytes; residual %.4g of %.4g left\n",
+                    ap.leafCount, ap.networks, deepest, r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2],
+                    ap.tree.size(), (unsigned long long)bytes.size(), (unsigned long long)s.partition.budgetBytes, ap.residual,
+                    ap.rootResidual);
+    }
+
     if (!o.stats.empty()) {
         nlohmann::json j;
+        if (s.partition.budgetBytes > 0) {
+            nlohmann::json leaves = nlohmann::json::array();
+            for (size_t i = 0; i < ap.leaves.size(); ++i) {
+                const PartitionLeafInfo& l = ap.leaves[i];
+                leaves.push_back({{"leaf", i}, {"depth", l.depth}, {"lo", {l.box.lo[0], l.box.lo[1], l.box.lo[2]}},
+                                  {"hi", {l.box.hi[0], l.box.hi[1], l.box.hi[2]}}, {"samples", l.samples},
+                                  {"residual", l.residual}});
+            }
+            j["partition"] = {{"kind", "kd-tree"},
+                              {"budget_bytes", s.partition.budgetBytes},
+                              {"lattice", {r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]}},
+                              {"nodes", ap.tree.size()},
+                              {"leaves", ap.leafCount},
+                              {"networks", ap.networks},
+                              {"splits_skipped_for_budget", ap.splitsSkippedForBudget},
+                              {"root_residual", ap.rootResidual},
+                              {"residual", ap.residual},
+                              {"cells", leaves}};
+        }
         j["scene"] = o.scene;
         j["asset"] = o.output;
         j["asset_bytes"] = bytes.size();
@@ -313,6 +399,12 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--blend-band", o->blendBand,
                     "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; "
                     "0 = none (default 0.0625)");
+    cmd->add_option("--budget", o->budget,
+                    "Asset size in bytes (suffix K or M, 1024-based): an adaptive kd-tree partition refined where it "
+                    "reduces the expected error most per byte, instead of the uniform --grid (docs/usage.md)");
+    cmd->add_option("--levels", o->levels, "With --budget: the finest cell is 2^-levels of the scene's longest axis (default 7)");
+    cmd->add_option("--min-leaf-samples", o->minLeafSamples,
+                    "With --budget: training samples a leaf with surface keeps at least (default 256)");
     cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
     cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");

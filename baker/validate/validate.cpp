@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 
 #include "baker/bake/baker.h"
@@ -55,7 +56,7 @@ void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference,
 
 }  // namespace
 
-FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid) {
+FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const eval::Partition& partition) {
     CameraRays rays(camera, width, height);
     const size_t n = size_t(width) * size_t(height);
     FirstHits h;
@@ -76,7 +77,7 @@ FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera
                 SurfaceInteraction si = makeInteraction(scene, hit, d);
                 const size_t i = size_t(y) * size_t(width) + size_t(x);
                 const float p[3] = {si.p.x, si.p.y, si.p.z};
-                h.voxel[i] = eval::locate(grid, p).voxel;
+                h.voxel[i] = partition.cellOf(p);
                 h.emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
                 h.points[i] = si.p;
                 h.normals[i] = si.ns;
@@ -110,23 +111,54 @@ std::vector<int> pixelRegions(const FirstHits& h) {
     return region;
 }
 
-SeamFigure seamFigure(const FirstHits& h, const format::Grid& grid, NradAsset asset) {
-    // For each hit near an interior face: the point on the face, nudged to either side.
+eval::Partition assetPartition(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    format::Asset a;
+    if (format::decode(bytes.data(), bytes.size(), a) != format::DecodeStatus::Ok)
+        throw std::runtime_error(path + ": cannot read the asset's partition");
+    return eval::Partition(a);
+}
+
+SeamFigure seamFigure(const FirstHits& h, const eval::Partition& partition, NradAsset asset) {
+    // For each hit near an interior face of its cell (within 2% of the cell's extent): the point on the face,
+    // nudged to either side.
+    const format::Grid& grid = partition.grid;
+    std::vector<format::TreeBox> boxes;
+    if (!partition.tree.empty()) {
+        uint32_t leaves = 0;
+        format::validateTree(grid.dims, partition.tree, leaves, &boxes);
+    }
     std::vector<float> p, n, d;
     for (size_t i = 0; i < h.voxel.size(); ++i) {
         if (h.voxel[i] < 0 || h.emitter[i]) continue;
+        format::TreeBox box;
+        if (boxes.empty()) {
+            const uint64_t v = uint64_t(h.voxel[i]);
+            const uint32_t c[3] = {uint32_t(v % grid.dims[0]), uint32_t(v / grid.dims[0] % grid.dims[1]),
+                                   uint32_t(v / (uint64_t(grid.dims[0]) * grid.dims[1]))};
+            for (int k = 0; k < 3; ++k) {
+                box.lo[k] = c[k];
+                box.hi[k] = c[k] + 1;
+            }
+        } else {
+            box = boxes[size_t(h.voxel[i])];
+        }
         for (int k = 0; k < 3; ++k) {
-            const float factor = eval::gridFactor(grid, k);
+            const float factor = partition.factor[k];
             const float t = eval::gridCoordinate(h.points[i][k], grid.lower[k], factor);
-            const float face = std::round(t);
-            if (face < 1.0f || face > float(grid.dims[k]) - 1.0f || std::abs(t - face) > 0.02f) continue;
-            for (float side : {-1e-4f, 1e-4f}) {
-                glm::vec3 q = h.points[i];
-                q[k] = grid.lower[k] + (face + side) / factor;
-                for (int c = 0; c < 3; ++c) {
-                    p.push_back(q[c]);
-                    n.push_back(h.normals[i][c]);
-                    d.push_back(h.directions[i][c]);
+            const float extent = float(box.hi[k] - box.lo[k]);
+            for (uint32_t faceAt : {box.lo[k], box.hi[k]}) {
+                const float face = float(faceAt);
+                if (faceAt == 0 || faceAt == grid.dims[k] || std::abs(t - face) > 0.02f * extent) continue;
+                for (float side : {-1e-4f, 1e-4f}) {
+                    glm::vec3 q = h.points[i];
+                    q[k] = grid.lower[k] + (face + side) / factor;
+                    for (int c = 0; c < 3; ++c) {
+                        p.push_back(q[c]);
+                        n.push_back(h.normals[i][c]);
+                        d.push_back(h.directions[i][c]);
+                    }
                 }
             }
         }
@@ -135,18 +167,17 @@ SeamFigure seamFigure(const FirstHits& h, const format::Grid& grid, NradAsset as
     {
         NradAssetInfo info;
         nradGetAssetInfo(asset, &info);
-        std::vector<bool> occupied(grid.voxelCount(), false);
+        std::vector<bool> occupied(size_t(partition.cells), false);
         for (uint32_t i = 0; i < info.occupiedVoxels; ++i) {
             uint32_t v = 0;
             if (nradGetOccupiedVoxel(asset, i, &v) == NRAD_OK && v < occupied.size()) occupied[v] = true;
         }
-        const float factor[3] = {eval::gridFactor(grid, 0), eval::gridFactor(grid, 1), eval::gridFactor(grid, 2)};
         size_t points = 0, evaluations = 0, blended = 0;
         for (size_t i = 0; i < h.voxel.size(); ++i) {
             if (h.voxel[i] < 0) continue;
             const float q[3] = {h.points[i].x, h.points[i].y, h.points[i].z};
             eval::Support s[eval::kMaxSupports];
-            int kept = eval::supports(grid, factor, info.blendBand, q, s);
+            int kept = partition.supports(q, s);
             kept = eval::keepOccupied(s, kept, [&](int64_t v) { return occupied[size_t(v)]; });
             if (kept == 0) continue;
             ++points;
@@ -305,15 +336,10 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     // 3. Through the asset, as an engine would (the public runtime API).
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
-    format::Grid assetGrid;
-    for (int k = 0; k < 3; ++k) {
-        assetGrid.lower[k] = info.gridLower[k];
-        assetGrid.upper[k] = info.gridUpper[k];
-        assetGrid.dims[k] = info.gridDims[k];
-    }
-    const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, assetGrid);
+    const eval::Partition partition = assetPartition(assetPath);
+    const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, partition);
     r.regionOfPixel = pixelRegions(hits);
-    r.seams = seamFigure(hits, assetGrid, asset);
+    r.seams = seamFigure(hits, partition, asset);
     {
         char line[320];
         std::snprintf(line, sizeof line,
@@ -333,7 +359,9 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
             throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
         score(m, st, r.reference, settings.exposure, r.regionOfPixel);
-        m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
+        // The networks' weights and, for an adaptive asset, its tree's nodes (8 bytes each).
+        m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4) +
+                  partition.tree.size() * 8;
         equalError(m, r.curve);
         r.neural = std::move(m);
         char line[200];
@@ -351,7 +379,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     if (settings.baseline) {
         auto t0 = clock_type::now();
         SampleSettings ss;
-        glm::uvec3 dims(info.gridDims[0], info.gridDims[1], info.gridDims[2]);
+        glm::uvec3 dims(info.gridDims[0], info.gridDims[1], info.gridDims[2]);  // the sampling grid (its floor)
         const nlohmann::json& bake = r.assetMetadata.is_object() ? r.assetMetadata.value("bake", nlohmann::json()) : nlohmann::json();
         if (bake.is_object()) {
             ss.points = bake.value("points", ss.points);
@@ -359,6 +387,8 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
             ss.maxDepth = bake.value("max_depth", ss.maxDepth);
             ss.seed = bake.value("seed", ss.seed);
             ss.minSamplesPerVoxel = bake.value("min_samples_per_voxel", ss.minSamplesPerVoxel);
+            const nlohmann::json g = bake.value("grid", nlohmann::json());  // a kd-tree's lattice is not the sampling grid
+            if (g.is_array() && g.size() == 3) dims = glm::uvec3(g[0].get<uint32_t>(), g[1].get<uint32_t>(), g[2].get<uint32_t>());
             r.baselineSamplesNote = "the bake's own settings, from the asset's metadata";
         } else {
             r.baselineSamplesNote = "default bake settings (the asset has no metadata)";

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 
@@ -88,11 +89,14 @@ struct FirstHits {
     std::vector<uint8_t> emitter;
     std::vector<glm::vec3> points, normals, directions;
 };
-FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const format::Grid& grid);
+// voxel: the cell (voxel or tree leaf) of the asset's partition holding each pixel's first hit, -1 if none.
+FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera, int width, int height, const eval::Partition& partition);
 // The kRegionNames region of every pixel.
 std::vector<int> pixelRegions(const FirstHits& hits);
 // The seam figure of `asset` on the surface points the view sees.
-SeamFigure seamFigure(const FirstHits& hits, const format::Grid& grid, NradAsset asset);
+SeamFigure seamFigure(const FirstHits& hits, const eval::Partition& partition, NradAsset asset);
+// The partition of the asset file at `path` (its grid, or its kd-tree), as the runtime locates with it.
+eval::Partition assetPartition(const std::string& path);
 
 struct ValidationResult {
     std::string scenePath, assetPath;

@@ -273,5 +273,25 @@ TEST(Tree, DecoderRefusesInvalidTrees) {
     }
 }
 
+// encodedSize() is what the baker's byte budget counts: it must be encode()'s size exactly.
+TEST(Tree, EncodedSizeIsTheEncodersSize) {
+    const Grid g = latticeGrid(8, 8, 8);
+    for (uint32_t leaves : {1u, 7u, 40u}) {
+        for (auto enc : {WeightEncoding::Float16, WeightEncoding::Float32})
+            for (size_t meta : {size_t(0), size_t(1), size_t(13)}) {
+                Asset a;
+                a.grid = g;
+                a.header.flags = kFlagScatteredRadiance | (leaves > 1 ? kFlagTree : 0u);
+                a.topology.hiddenWidths = leaves == 7 ? std::vector<uint32_t>{5, 3} : std::vector<uint32_t>{9};
+                a.topology.weightEncoding = enc;
+                if (leaves > 1) a.tree = test::randomTree(g.dims, leaves, leaves);
+                for (uint32_t i = 0; i < leaves; ++i) a.voxels.push_back({i, 1.0f});
+                a.weights.assign(a.voxels.size() * a.topology.parameterCount(), 0.5f);
+                a.metadata = std::string(meta, 'x');
+                EXPECT_EQ(encode(a).size(), encodedSize(a.topology, a.voxels.size(), a.tree.size(), meta)) << leaves << " " << meta;
+            }
+    }
+}
+
 }  // namespace
 }  // namespace nrad::format

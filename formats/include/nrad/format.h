@@ -525,6 +525,20 @@ inline void put32(std::vector<uint8_t>& b, size_t at, uint32_t v) { for (int i =
 inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i)); }
 }  // namespace detail
 
+// The size encode() gives an asset of `networks` networks of topology t, a tree of `treeNodes` nodes (0: no
+// TREE section) and `metadataBytes` of metadata (0: no META section): for writers that must fit a byte budget.
+inline uint64_t encodedSize(const Topology& t, uint64_t networks, uint64_t treeNodes, uint64_t metadataBytes) {
+    const uint64_t sections[6] = {40, 24 + 4 * uint64_t(t.hiddenWidths.size()), 4 + 8 * networks,
+                                  networks * t.parameterCount() * t.bytesPerWeight(), treeNodes ? 4 + 8 * treeNodes : 0,
+                                  metadataBytes};
+    uint64_t count = 4 + (treeNodes ? 1 : 0) + (metadataBytes ? 1 : 0), size = kHeaderSize + count * kSectionRecordSize;
+    for (int i = 0; i < 6; ++i) {
+        if (i >= 4 && sections[i] == 0) continue;
+        size = (size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment + sections[i];
+    }
+    return size;
+}
+
 // Encodes an asset (header.flags as given, version and sizes from this file). Preconditions (the caller's
 // job; encode() does not validate): weights.size() ==
 // voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid (the tree's leaves

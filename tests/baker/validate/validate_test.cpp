@@ -115,9 +115,22 @@ TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
     NradAsset asset = nullptr;
     ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
     Accel accel(scene);
-    const FirstHits hits = firstHits(scene, accel, scene.cameras[0], 64, 64, a.grid);
-    SeamFigure f = seamFigure(hits, a.grid, asset);
+    const FirstHits hits = firstHits(scene, accel, scene.cameras[0], 64, 64, eval::Partition(a));
+    SeamFigure f = seamFigure(hits, eval::Partition(a), asset);
     nradReleaseAsset(asset);
+    {  // the same two voxels as the leaves of a kd-tree: the same figure
+        format::Asset t = a;
+        t.header.flags |= format::kFlagTree;
+        t.tree = format::uniformTree(t.grid.dims);
+        t.leafCount = 2;
+        const std::vector<uint8_t> tb = format::encode(t);
+        NradAsset ta = nullptr;
+        ASSERT_EQ(nradLoadFromMemory(tb.data(), tb.size(), NRAD_LOAD_COPY, &ta, nullptr, 0), NRAD_OK);
+        const SeamFigure g = seamFigure(firstHits(scene, accel, scene.cameras[0], 64, 64, eval::Partition(t)), eval::Partition(t), ta);
+        nradReleaseAsset(ta);
+        EXPECT_EQ(g.points, f.points);
+        EXPECT_EQ(g.relMse, f.relMse);
+    }
     EXPECT_GT(f.points, 20u);
     EXPECT_NEAR(f.relMse, 1.0 / (1.5 * 1.5 + 0.01), 2e-3);
     EXPECT_NEAR(f.meanRelativeJump, 1.0 / (1.5 + 0.01), 2e-3);

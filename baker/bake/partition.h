@@ -1,0 +1,60 @@
+// The adaptive partition (issue 15): a kd-tree over a fine lattice of the scene's box, refined greedily by
+// the expected error reduction per byte until the asset's byte budget is spent. A cell's expected error is
+// what a smooth model cannot explain of what its network must learn: the residual sum of squares of a
+// least-squares fit, linear in position, normal and direction, of log(1 + the demodulated luminance) over
+// the cell's training samples. A split's gain is the parent's residual minus its children's; it costs one
+// network (when both children hold surface) and two tree nodes. Cells never split where there is no surface
+// (a child without samples gets no network) and keep at least minLeafSamples samples each.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <nrad/format.h>
+
+#include "baker/bake/training_samples.h"
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct PartitionSettings {
+    uint64_t budgetBytes = 0;  // 0: no tree, the uniform grid of BakeSettings::grid
+    uint32_t levels = 7;  // the lattice: 2^levels voxels along the scene's longest axis, the others in proportion
+    uint32_t minLeafSamples = 256;  // samples a leaf with surface keeps at least (of its own, inside it)
+};
+
+// The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).
+glm::uvec3 latticeDims(const Bounds3& bounds, uint32_t levels);
+
+struct PartitionLeafInfo {
+    format::TreeBox box;
+    uint32_t depth = 0;
+    uint32_t samples = 0;  // of its own
+    double residual = 0.0;  // of the linear fit over its samples
+};
+
+struct AdaptivePartition {
+    std::vector<format::TreeNode> tree;  // format order (format::validateTree holds)
+    uint32_t leafCount = 0;
+    std::vector<PartitionLeafInfo> leaves;  // in leaf order
+    std::vector<uint32_t> leafOfSample;  // per training sample: the leaf holding it
+    uint32_t networks = 0;  // leaves with samples
+    uint64_t bytes = 0;  // format::encodedSize of the tree, the networks and the reserved metadata
+    double rootResidual = 0.0, residual = 0.0;  // summed over leaves, before and after refining
+    uint64_t splitsSkippedForBudget = 0;
+};
+
+// What the metadata may take: `fixed` bytes plus perNetwork per network (the held-out error list).
+struct MetadataReserve {
+    uint64_t fixed = 0, perNetwork = 0;
+    uint64_t bytes(uint64_t networks) const { return fixed + perNetwork * networks; }
+};
+
+// Refines the lattice `lattice` (a VoxelGrid's grid) for `samples` (their radiance as trained: `learned` gives
+// each sample's value log(1 + demodulated luminance)) until no split fits the budget or gains anything.
+// Throws std::runtime_error when even one network does not fit (the message names the smallest budget).
+AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
+                                  const std::vector<float>& learned, const format::Topology& topology,
+                                  const PartitionSettings& settings, const MetadataReserve& reserve);
+
+}  // namespace nrad
