@@ -120,7 +120,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         std::vector<float> learned(samples.size());
         for (size_t i = 0; i < samples.size(); ++i) {
             const glm::vec3 y = settings.train.demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
-            learned[i] = float(std::log1p(std::max(0.0, luminance(y))));
+            learned[i] = float(std::log(std::max(0.0, luminance(y)) + 0.1));
         }
         // The metadata: what it holds without the per-network list, and at most 16 bytes per entry of that list.
         BakeResult none;

@@ -1,8 +1,9 @@
 // The adaptive partition (issue 15): a kd-tree over a fine lattice of the scene's box, refined greedily by
 // the expected error reduction per byte until the asset's byte budget is spent. A cell's expected error is
 // what a smooth model cannot explain of what its network must learn: the residual sum of squares of a
-// least-squares fit, linear in position, normal and direction, of log(1 + the demodulated luminance) over
-// the cell's training samples. A split's gain is the parent's residual minus its children's; it costs one
+// least-squares fit, linear in position, normal and direction, of log(0.1 + the demodulated luminance) over
+// the cell's training samples (a difference of that log is the relative error with relMSE's floor, so the
+// residual weighs dark and bright cells as the validation's relMSE does). A split's gain is the parent's residual minus its children's; it costs one
 // network (when both children hold surface) and two tree nodes. Cells never split where there is no surface
 // (a child without samples gets no network) and keep at least minLeafSamples samples each.
 #pragma once
@@ -51,7 +52,7 @@ struct MetadataReserve {
 };
 
 // Refines the lattice `lattice` (a VoxelGrid's grid) for `samples` (their radiance as trained: `learned` gives
-// each sample's value log(1 + demodulated luminance)) until no split fits the budget or gains anything.
+// each sample's value log(0.1 + demodulated luminance)) until no split fits the budget or gains anything.
 // Throws std::runtime_error when even one network does not fit (the message names the smallest budget).
 AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
                                   const std::vector<float>& learned, const format::Topology& topology,
