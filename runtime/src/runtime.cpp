@@ -433,7 +433,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
                         a->denseLookup.size() * sizeof(int32_t) +
-                        a->partition.tree.size() * (sizeof(format::TreeNode) + sizeof(float)) +
+                        a->partition.bytes() +
                         a->metadataCopy.size();
         *info = r;
         return NRAD_OK;

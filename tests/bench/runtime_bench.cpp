@@ -23,6 +23,7 @@
 #include <thread>
 #include <vector>
 
+#include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 
@@ -212,6 +213,128 @@ int main(int argc, char** argv) {
     }
     NradKernel auto_ = nradActiveKernel();
     double network = evaluationsPerSecond(asset, incoherent, 1, repeat);
+
+    // The kd-tree partition (format 2.2): what locating through the tree costs next to a whole evaluation.
+    // Assets of 9-9-3 fp16 networks on a 128^3 lattice, one tree each (random splits, leaves of many sizes,
+    // every leaf a network), incoherent points, one thread: evaluations/s through the public API (locate
+    // included), and in the same run the locate alone (eval::Partition::supports + keepOccupied, what
+    // the runtime calls per point) over the same points.
+    std::printf("\nkd-tree partition, 1 thread, incoherent points, kernel %d (blend band %g):\n", int(auto_), double(band));
+    std::printf("  %8s %6s %10s %14s %14s %12s %14s\n", "leaves", "depth", "bytes", "M evals/s", "M locates/s", "locate share",
+                "grid M evals/s");
+    for (uint32_t leaves : {27u, 512u, 4096u}) {
+        nrad::format::Asset t;
+        for (int k = 0; k < 3; ++k) {
+            t.grid.lower[k] = 0.0f;
+            t.grid.upper[k] = 1.0f;
+            t.grid.dims[k] = 128;
+        }
+        t.topology = a.topology;
+        t.header.flags = nrad::format::kFlagTree | (band > 0.0f ? nrad::format::kFlagBlended : 0u);
+        t.grid.blendBand = band;
+        // Balanced-ish random tree: split the cell with the most volume at a random plane of its longest axis.
+        std::vector<nrad::format::TreeBox> open(1);
+        for (int k = 0; k < 3; ++k) open[0].hi[k] = 128;
+        struct Cell { nrad::format::TreeBox box; int lower = -1; uint32_t axis = 0, split = 0; };
+        std::vector<Cell> cells(1);
+        cells[0].box = open[0];
+        std::vector<size_t> leafCells = {0};
+        while (leafCells.size() < leaves) {
+            size_t pick = 0;
+            uint64_t best = 0;
+            for (size_t i = 0; i < leafCells.size(); ++i) {
+                const auto& b = cells[leafCells[i]].box;
+                uint64_t vol = uint64_t(b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]) * (b.hi[2] - b.lo[2]) * (1 + rng() % 4);
+                if (vol > best) { best = vol; pick = i; }
+            }
+            const size_t c = leafCells[pick];
+            nrad::format::TreeBox b = cells[c].box;
+            uint32_t axis = 0;
+            for (uint32_t k = 1; k < 3; ++k) if (b.hi[k] - b.lo[k] > b.hi[axis] - b.lo[axis]) axis = k;
+            const uint32_t extent = b.hi[axis] - b.lo[axis];
+            if (extent < 2) break;
+            const uint32_t split = b.lo[axis] + 1 + uint32_t(rng() % (extent - 1));
+            Cell lo, hi;
+            lo.box = hi.box = b;
+            lo.box.hi[axis] = split;
+            hi.box.lo[axis] = split;
+            cells[c].axis = axis;
+            cells[c].split = split;
+            cells[c].lower = int(cells.size());
+            cells.push_back(lo);
+            cells.push_back(hi);
+            leafCells[pick] = cells.size() - 2;
+            leafCells.push_back(cells.size() - 1);
+        }
+        t.tree.assign(1, {});
+        uint32_t leafCount = 0;
+        struct Emit {
+            std::vector<Cell>& cells; std::vector<nrad::format::TreeNode>& nodes; uint32_t& leaf;
+            void operator()(size_t c, uint32_t at) {
+                if (cells[c].lower < 0) { nodes[at] = {nrad::format::kTreeLeaf, 0, leaf++}; return; }
+                const uint32_t child = uint32_t(nodes.size());
+                nodes.resize(nodes.size() + 2);
+                nodes[at] = {cells[c].axis, cells[c].split, child};
+                (*this)(size_t(cells[c].lower), child);
+                (*this)(size_t(cells[c].lower + 1), child + 1);
+            }
+        };
+        Emit{cells, t.tree, leafCount}(0, 0);
+        std::vector<nrad::format::TreeBox> boxes;
+        uint32_t checked = 0;
+        if (!nrad::format::validateTree(t.grid.dims, t.tree, checked, &boxes)) return 1;
+        uint32_t depth = 0;
+        {
+            std::vector<std::pair<uint32_t, uint32_t>> stack = {{0, 0}};
+            while (!stack.empty()) {
+                auto [n, d] = stack.back();
+                stack.pop_back();
+                depth = std::max(depth, d);
+                if (t.tree[n].axis != nrad::format::kTreeLeaf) {
+                    stack.push_back({t.tree[n].child, d + 1});
+                    stack.push_back({t.tree[n].child + 1, d + 1});
+                }
+            }
+        }
+        for (uint32_t v = 0; v < leafCount; ++v) t.voxels.push_back({v, 1.0f});
+        for (size_t i = 0; i < leafCount * t.topology.parameterCount(); ++i) t.weights.push_back(u(rng));
+        const std::vector<uint8_t> tb = nrad::format::encode(t);
+        NradAsset ta = nullptr;
+        if (nradLoadFromMemory(tb.data(), tb.size(), NRAD_LOAD_COPY, &ta, nullptr, 0) != NRAD_OK) return 1;
+        const double evals = evaluationsPerSecond(ta, incoherent, 1, repeat);
+        // The same networks on the uniform grid of as many voxels (16^3 = 4096, 8^3 = 512, 3^3 = 27).
+        nrad::format::Asset g = t;
+        g.header.flags &= ~nrad::format::kFlagTree;
+        g.tree.clear();
+        const uint32_t side = uint32_t(std::lround(std::cbrt(double(leafCount))));
+        for (int k = 0; k < 3; ++k) g.grid.dims[k] = side;
+        g.voxels.resize(size_t(side) * side * side);
+        g.weights.resize(g.voxels.size() * g.topology.parameterCount());
+        const std::vector<uint8_t> gb = nrad::format::encode(g);
+        NradAsset ga = nullptr;
+        if (nradLoadFromMemory(gb.data(), gb.size(), NRAD_LOAD_COPY, &ga, nullptr, 0) != NRAD_OK) return 1;
+        const double gridEvals = evaluationsPerSecond(ga, incoherent, 1, repeat);
+        nrad::format::Asset decoded;
+        nrad::format::decode(tb.data(), tb.size(), decoded);
+        const nrad::eval::Partition part(decoded);
+        double bestLocate = 0.0;
+        for (int rep = 0; rep < repeat; ++rep) {
+            auto t0 = clock_type::now();
+            size_t acc = 0;
+            for (size_t i = 0; i < points; ++i) {
+                nrad::eval::Support sup[nrad::eval::kMaxSupports];
+                int c = part.supports(&incoherent.p[3 * i], sup);
+                c = nrad::eval::keepOccupied(sup, c, [](int64_t) { return true; });
+                acc += size_t(c) + size_t(sup[0].voxel);
+            }
+            fma_peak::gSink = fma_peak::gSink + float(acc);
+            bestLocate = std::max(bestLocate, double(points) / seconds(t0, clock_type::now()));
+        }
+        std::printf("  %8u %6u %10zu %14.1f %14.1f %11.1f%% %14.1f\n", leafCount, depth, tb.size(), evals * 1e-6,
+                    bestLocate * 1e-6, 100.0 * evals / bestLocate, gridEvals * 1e-6);
+        nradReleaseAsset(ta);
+        nradReleaseAsset(ga);
+    }
     std::printf("\nL2 SH probe grid of the same bytes (%d^3 probes x 27 fp32): %.1f M trilinear lookups/s on 1 thread; "
                 "networks (kernel %d, incoherent): %.1f M/s = %.2fx the probe lookup's rate\n",
                 probesPerAxis, best * 1e-6, int(auto_), network * 1e-6, network / best);

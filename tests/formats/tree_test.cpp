@@ -137,6 +137,32 @@ TEST(Tree, BlendWeightsArePartitionsOfUnityAcrossLeavesOfDifferentSizes) {
     }
 }
 
+// The start table is an acceleration only: every point gets the supports of the descent from the root, bit
+// for bit, for blended and unblended trees of many shapes.
+TEST(Tree, StartTableGivesTheRootDescentsSupports) {
+    const Grid g = latticeGrid(40, 24, 33);
+    for (uint32_t seed = 1; seed <= 5; ++seed) {
+        const std::vector<TreeNode> tree = test::randomTree(g.dims, 30 * seed * seed, seed);
+        uint32_t leaves = 0;
+        ASSERT_TRUE(validateTree(g.dims, tree, leaves));
+        for (float band : {0.0f, 0.0625f, 0.5f}) {
+            const eval::Partition fast(g, band, tree, leaves), plain(g, band, tree, leaves, false);
+            ASSERT_FALSE(fast.starts.empty());
+            ASSERT_TRUE(plain.starts.empty());
+            for (const auto& p : probePoints(g, 5000, seed + 100)) {
+                eval::Support a[eval::kMaxSupports], b[eval::kMaxSupports];
+                const int na = fast.supports(p.data(), a), nb = plain.supports(p.data(), b);
+                ASSERT_EQ(na, nb);
+                for (int i = 0; i < na; ++i) {
+                    ASSERT_EQ(a[i].voxel, b[i].voxel);
+                    ASSERT_EQ(std::memcmp(&a[i].weight, &b[i].weight, 4), 0);
+                    ASSERT_EQ(std::memcmp(a[i].local, b[i].local, 12), 0);
+                }
+            }
+        }
+    }
+}
+
 std::vector<uint8_t> treeAssetBytes(const std::vector<TreeNode>& tree, uint32_t leaves, uint32_t flags = kFlagTree) {
     Asset a;
     a.grid = latticeGrid(4, 4, 4);

@@ -238,12 +238,55 @@ inline int64_t treeLeaf(const format::Grid& g, const float factor[3], const form
 // Position input of grid coordinate t relative to the lattice interval [lo, hi) (2 (t - lo) / (hi - lo) - 1).
 inline float localInBox(float t, uint32_t lo, uint32_t hi) { return 2.0f * (t - float(lo)) / float(hi - lo) - 1.0f; }
 
+// An acceleration of the descent (not part of the contract: results are identical with or without it): a
+// coarse table over the lattice that gives, for each of its cells, the deepest node whose box holds the whole
+// cell and none of whose ancestors' planes blends anywhere in it (with a margin of 1e-3 voxels against
+// rounding). Every point of the cell starts there with weights 1, which is what the descent from the root
+// reaches too.
+inline std::vector<uint32_t> buildTreeStarts(const uint32_t dims[3], const std::vector<format::TreeNode>& nodes,
+                                             const std::vector<float>& widths, const uint32_t startDims[3]) {
+    std::vector<uint32_t> starts(size_t(startDims[0]) * startDims[1] * startDims[2]);
+    constexpr float kMargin = 1e-3f;
+    for (uint32_t z = 0; z < startDims[2]; ++z)
+        for (uint32_t y = 0; y < startDims[1]; ++y)
+            for (uint32_t x = 0; x < startDims[0]; ++x) {
+                const uint32_t c[3] = {x, y, z};
+                float lo[3], hi[3];
+                for (int k = 0; k < 3; ++k) {
+                    lo[k] = float(c[k]) * float(dims[k]) / float(startDims[k]) - kMargin;
+                    hi[k] = float(c[k] + 1) * float(dims[k]) / float(startDims[k]) + kMargin;
+                }
+                uint32_t at = 0;
+                while (nodes[at].axis != format::kTreeLeaf) {
+                    const format::TreeNode& n = nodes[at];
+                    const float split = float(n.split), w = widths[at];
+                    if (hi[n.axis] <= split - w)
+                        at = n.child;
+                    else if (lo[n.axis] >= split + w)
+                        at = n.child + 1;
+                    else
+                        break;
+                }
+                starts[(size_t(z) * startDims[1] + y) * startDims[0] + x] = at;
+            }
+    return starts;
+}
+
+struct TreeView {
+    const format::TreeNode* nodes = nullptr;
+    const float* widths = nullptr;  // treeBandWidths
+    const format::TreeBox* boxes = nullptr;  // per leaf (format::validateTree)
+    const uint32_t* starts = nullptr;  // optional: buildTreeStarts
+    uint32_t startDims[3] = {0, 0, 0};
+    float startScale[3] = {0, 0, 0};  // start-table cells per lattice voxel
+};
+
 // Every leaf that shades p, in leaf order (depth first, lower first), with its weight and p's position input
-// relative to it: the tree's supports() (keepOccupied applies the same way, with leaf indices). `widths`
-// from treeBandWidths (band 0: all zero, one support). At most kMaxSupports (a validated tree with
+// relative to it: the tree's supports() (keepOccupied applies the same way, with leaf indices). Widths from
+// treeBandWidths (band 0: all zero, one support). At most kMaxSupports (a validated tree with
 // treeBandWidths' widths has no more).
-inline int treeSupports(const format::Grid& g, const float factor[3], const format::TreeNode* nodes, const float* widths,
-                        float band, const float p[3], Support out[kMaxSupports]) {
+inline int treeSupports(const format::Grid& g, const float factor[3], const TreeView& v, float band, const float p[3],
+                        Support out[kMaxSupports]) {
     float t[3];
     for (int k = 0; k < 3; ++k) {
         if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) return 0;
@@ -252,50 +295,53 @@ inline int treeSupports(const format::Grid& g, const float factor[3], const form
     struct Item {
         uint32_t node;
         float w[3];
-        format::TreeBox box;
     };
     Item stack[format::kMaxTreeDepth + 2];
     int top = 0;
-    stack[top] = {0, {1.0f, 1.0f, 1.0f}, {}};
-    for (int k = 0; k < 3; ++k) stack[top].box.hi[k] = g.dims[k];
-    ++top;
+    stack[top++] = {0, {1.0f, 1.0f, 1.0f}};
+    if (v.starts) {
+        size_t at = 0;
+        for (int k = 2; k >= 0; --k) {
+            const int c = int(t[k] * v.startScale[k]);
+            at = at * v.startDims[k] + size_t(c < 0 ? 0 : (c >= int(v.startDims[k]) ? int(v.startDims[k]) - 1 : c));
+        }
+        stack[0].node = v.starts[at];
+    }
     bool blended[3] = {false, false, false};
-    format::TreeBox boxes[kMaxSupports];
     int count = 0;
     while (top > 0) {
         const Item it = stack[--top];
-        const format::TreeNode& n = nodes[it.node];
+        const format::TreeNode& n = v.nodes[it.node];
         if (n.axis == format::kTreeLeaf) {
             if (count == kMaxSupports) continue;
             out[count].voxel = int64_t(n.child);
-            out[count].weight = it.w[0] * it.w[1] * it.w[2];
-            boxes[count++] = it.box;
+            out[count++].weight = it.w[0] * it.w[1] * it.w[2];
             continue;
         }
         const int k = int(n.axis);
-        const float x = t[k] - float(n.split), w = widths[it.node];
-        Item lower = it, upper = it;
-        lower.node = n.child;
-        upper.node = n.child + 1;
-        lower.box.hi[k] = n.split;
-        upper.box.lo[k] = n.split;
+        const float x = t[k] - float(n.split), w = v.widths[it.node];
         if (w > 0.0f && x > -w && x < w) {
             const float above = aboveFaceWeight(x, w);
             blended[k] = true;
+            Item lower = it, upper = it;
+            lower.node = n.child;
+            upper.node = n.child + 1;
             upper.w[k] = it.w[k] * above;
             lower.w[k] = it.w[k] * (1.0f - above);
             stack[top++] = upper;
             stack[top++] = lower;
         } else {
-            stack[top++] = x >= 0.0f ? upper : lower;
+            stack[top++] = {x >= 0.0f ? n.child + 1 : n.child, {it.w[0], it.w[1], it.w[2]}};
         }
     }
-    for (int i = 0; i < count; ++i)
+    for (int i = 0; i < count; ++i) {
+        const format::TreeBox& b = v.boxes[size_t(out[i].voxel)];
         for (int k = 0; k < 3; ++k) {
             const float reach = blended[k] ? 1.0f + 2.0f * band : 1.0f;
-            const float q = localInBox(t[k], boxes[i].lo[k], boxes[i].hi[k]);
+            const float q = localInBox(t[k], b.lo[k], b.hi[k]);
             out[i].local[k] = q < -reach ? -reach : (q > reach ? reach : q);
         }
+    }
     return count;
 }
 
@@ -306,26 +352,59 @@ struct Partition {
     float band = 0.0f;  // the blending band (kFlagBlended), else 0
     std::vector<format::TreeNode> tree;  // empty: the uniform grid
     std::vector<float> widths;  // treeBandWidths
+    std::vector<format::TreeBox> boxes;  // per leaf
+    std::vector<uint32_t> starts;  // buildTreeStarts, with at most kMaxStartCells per axis
+    uint32_t startDims[3] = {0, 0, 0};
+    float startScale[3] = {0, 0, 0};
     uint64_t cells = 0;  // voxels or leaves
+    static constexpr uint32_t kMaxStartCells = 32;
 
     Partition() = default;
-    Partition(const format::Grid& g, float blendBand, std::vector<format::TreeNode> nodes, uint32_t leafCount)
+    // `nodes` must be a valid tree over g.dims (format::validateTree), or empty for the grid.
+    Partition(const format::Grid& g, float blendBand, std::vector<format::TreeNode> nodes, uint32_t leafCount, bool accelerate = true)
         : grid(g), band(blendBand), tree(std::move(nodes)) {
         for (int k = 0; k < 3; ++k) factor[k] = gridFactor(g, k);
-        if (!tree.empty()) widths = treeBandWidths(g.dims, tree, band);
         cells = tree.empty() ? g.voxelCount() : uint64_t(leafCount);
+        if (tree.empty()) return;
+        widths = treeBandWidths(g.dims, tree, band);
+        uint32_t leaves = 0;
+        format::validateTree(g.dims, tree, leaves, &boxes);
+        if (!accelerate) return;
+        for (int k = 0; k < 3; ++k) {
+            startDims[k] = g.dims[k] < kMaxStartCells ? g.dims[k] : kMaxStartCells;
+            startScale[k] = float(startDims[k]) / float(g.dims[k]);
+        }
+        starts = buildTreeStarts(g.dims, tree, widths, startDims);
     }
-    explicit Partition(const format::Asset& a)
-        : Partition(a.grid, (a.header.flags & format::kFlagBlended) ? a.grid.blendBand : 0.0f, a.tree, a.leafCount) {}
+    explicit Partition(const format::Asset& a, bool accelerate = true)
+        : Partition(a.grid, (a.header.flags & format::kFlagBlended) ? a.grid.blendBand : 0.0f, a.tree, a.leafCount, accelerate) {}
 
+    TreeView view() const {
+        TreeView v;
+        v.nodes = tree.data();
+        v.widths = widths.data();
+        v.boxes = boxes.data();
+        if (!starts.empty()) {
+            v.starts = starts.data();
+            for (int k = 0; k < 3; ++k) {
+                v.startDims[k] = startDims[k];
+                v.startScale[k] = startScale[k];
+            }
+        }
+        return v;
+    }
     int supports(const float p[3], Support out[kMaxSupports]) const {
-        return tree.empty() ? eval::supports(grid, factor, band, p, out)
-                            : treeSupports(grid, factor, tree.data(), widths.data(), band, p, out);
+        return tree.empty() ? eval::supports(grid, factor, band, p, out) : treeSupports(grid, factor, view(), band, p, out);
     }
     // The cell holding p without blending, -1 outside.
     int64_t cellOf(const float p[3]) const {
         if (!tree.empty()) return treeLeaf(grid, factor, tree.data(), p);
         return locate(grid, factor, p).voxel;
+    }
+    // Memory held, in bytes.
+    size_t bytes() const {
+        return tree.size() * (sizeof(format::TreeNode) + sizeof(float)) + boxes.size() * sizeof(format::TreeBox) +
+               starts.size() * sizeof(uint32_t);
     }
 };
 
