@@ -1,0 +1,141 @@
+// The adaptive partition (nrad bake --budget): the asset never exceeds its budget, is byte-identical for one
+// and two threads, and refines where the error is: a plane with one sharp shadow gets its small leaves at the
+// shadow's edges, not on the evenly lit rest.
+#include "baker/bake/baker.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <nrad/nrad.hpp>
+
+#include "baker/scene/gltf_loader.h"
+#include "baker/util/threads.h"
+#include "support/test_paths.h"
+#include "support/test_scenes.h"
+
+namespace nrad {
+namespace {
+
+BakeSettings tinySettings(uint64_t budget) {
+    BakeSettings s;
+    s.partition.budgetBytes = budget;
+    s.partition.minLeafSamples = 64;
+    s.samples.points = 12000;
+    s.samples.paths = 4;
+    s.train.epochs = 40;
+    s.train.patience = 20;
+    s.train.weightDecays = {0.0f};
+    s.samples.seed = s.train.seed = 3;
+    return s;
+}
+
+TEST(Partition, TheBudgetIsNeverExceeded) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    size_t previous = 0;
+    for (uint64_t budget : {1200u, 3000u, 6000u, 14000u}) {
+        const BakeResult r = bakeScene(scene, tinySettings(budget));
+        const std::vector<uint8_t> bytes = format::encode(r.asset);
+        EXPECT_LE(bytes.size(), budget);
+        EXPECT_EQ(bytes.size(), format::encodedSize(r.asset.topology, r.asset.voxels.size(), r.asset.tree.size(), r.asset.metadata.size()));
+        // The budget is spent, not left: within one more split (a network, its entry, two nodes) and what the
+        // metadata's reserve (64 bytes and 16 per network) did not use, or no split was left to make.
+        const uint64_t perSplit = 8 + 16 + r.asset.topology.parameterCount() * 2 + 16;
+        const uint64_t reserveSlack = 64 + 16 * r.asset.voxels.size();
+        EXPECT_TRUE(bytes.size() + perSplit + reserveSlack > budget || r.partition.splitsSkippedForBudget == 0) << budget;
+        EXPECT_GT(bytes.size(), previous);
+        previous = bytes.size();
+        format::Asset back;
+        ASSERT_EQ(format::decode(bytes.data(), bytes.size(), back), format::DecodeStatus::Ok);
+        EXPECT_EQ(back.leafCount, r.partition.leafCount);
+        EXPECT_EQ(r.voxels.size(), r.partition.networks);
+    }
+    // Below one network's asset: refused, naming the smallest budget.
+    try {
+        bakeScene(scene, tinySettings(300));
+        ADD_FAILURE() << "a budget of 300 bytes was accepted";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("smallest asset"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Partition, ByteIdenticalForOneAndTwoThreads) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
+    BakeSettings s = tinySettings(5000);
+    s.samples.points = 4000;
+    std::vector<uint8_t> one, two;
+    {
+        ThreadScope threads(1);
+        one = format::encode(bakeScene(scene, s).asset);
+    }
+    {
+        ThreadScope threads(2);
+        two = format::encode(bakeScene(scene, s).asset);
+    }
+    EXPECT_EQ(one, two);
+}
+
+// A white plane 20 x 20 under a sharp sun straight above, and a bar 0.5 wide floating 2 above it across the
+// whole plane: one shadow strip x in [1, 1.5] with sharp edges, evenly lit everywhere else.
+Scene shadowScene() {
+    Scene scene = test::makeLitPlane(0.5f, 10.0f);
+    TriangleMesh& mesh = scene.mesh;
+    const uint32_t base = uint32_t(mesh.positions.size());
+    for (glm::vec2 c : {glm::vec2(1.0f, -10.0f), glm::vec2(1.5f, -10.0f), glm::vec2(1.5f, 10.0f), glm::vec2(1.0f, 10.0f)}) {
+        mesh.positions.emplace_back(c.x, c.y, 2.0f);
+        mesh.normals.emplace_back(0, 0, 1);
+        mesh.uv0.emplace_back(0.0f);
+        mesh.uv1.emplace_back(0.0f);
+    }
+    mesh.triangles.push_back({base, base + 1, base + 2});
+    mesh.triangles.push_back({base, base + 2, base + 3});
+    mesh.materialIds.push_back(0);
+    mesh.materialIds.push_back(0);
+    scene.materials[0].doubleSided = true;
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.name = "sun";
+    sun.direction = glm::vec3(0.0f, 0.0f, -1.0f);
+    sun.intensity = glm::vec3(3.0f);
+    scene.lights.push_back(sun);
+    scene.updateBounds();
+    return scene;
+}
+
+TEST(Partition, RefinesAtASharpShadow) {
+    const Scene scene = shadowScene();
+    BakeSettings s = tinySettings(9000);
+    s.samples.points = 20000;
+    const BakeResult r = bakeScene(scene, s);
+    const AdaptivePartition& ap = r.partition;
+    ASSERT_GT(ap.networks, 8u);
+    const format::Grid& g = r.asset.grid;
+    // The x extent (in world units) of the leaf holding a point of the plane.
+    auto extentAt = [&](float x, float y) {
+        const float p[3] = {x, y, 0.0f};
+        const eval::Partition part(r.asset);
+        const int64_t leaf = part.cellOf(p);
+        EXPECT_GE(leaf, 0);
+        const format::TreeBox& b = ap.leaves[size_t(leaf)].box;
+        return float(b.hi[0] - b.lo[0]) / eval::gridFactor(g, 0);
+    };
+    // At both edges of the shadow, anywhere along them, the leaves are far narrower than on the lit plane
+    // far from it.
+    for (float y : {-7.0f, 0.3f, 6.0f}) {
+        const float far = std::min(extentAt(-7.0f, y), extentAt(7.5f, y));
+        EXPECT_LE(extentAt(1.0f, y), far / 4.0f) << y;
+        EXPECT_LE(extentAt(1.5f, y), far / 4.0f) << y;
+    }
+    // And the deepest leaves are at the shadow: every leaf at the maximal depth touches x in [0, 2.5].
+    uint32_t deepest = 0;
+    for (const PartitionLeafInfo& l : ap.leaves) deepest = std::max(deepest, l.depth);
+    for (const PartitionLeafInfo& l : ap.leaves) {
+        if (l.depth != deepest || l.samples == 0) continue;
+        const float lo = g.lower[0] + float(l.box.lo[0]) / eval::gridFactor(g, 0);
+        const float hi = g.lower[0] + float(l.box.hi[0]) / eval::gridFactor(g, 0);
+        EXPECT_TRUE(hi > 0.0f && lo < 2.5f) << lo << " " << hi;
+    }
+}
+
+}  // namespace
+}  // namespace nrad
