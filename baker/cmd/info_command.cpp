@@ -1,4 +1,5 @@
 // `nrad info`: what an .nrad asset holds.
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -34,7 +35,23 @@ int runInfo(const std::string& path) {
                 a.header.versionMinor, bytes.size(), a.header.sectionCount);
     std::printf("grid: %ux%ux%u voxels over [%g, %g, %g] - [%g, %g, %g]\n", a.grid.dims[0], a.grid.dims[1], a.grid.dims[2],
                 a.grid.lower[0], a.grid.lower[1], a.grid.lower[2], a.grid.upper[0], a.grid.upper[1], a.grid.upper[2]);
-    std::printf("occupied voxels: %zu of %llu\n", a.voxels.size(), (unsigned long long)a.grid.voxelCount());
+    if (a.tree.empty()) {
+        std::printf("occupied voxels: %zu of %llu\n", a.voxels.size(), (unsigned long long)a.grid.voxelCount());
+    } else {
+        std::vector<format::TreeBox> boxes;
+        uint32_t leaves = 0;
+        format::validateTree(a.grid.dims, a.tree, leaves, &boxes);
+        uint64_t smallest = UINT64_MAX, largest = 0;
+        for (const format::TreeBox& b : boxes) {
+            const uint64_t v = uint64_t(b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]) * (b.hi[2] - b.lo[2]);
+            smallest = std::min(smallest, v);
+            largest = std::max(largest, v);
+        }
+        std::printf("partition: kd-tree of %u leaves over the grid's lattice (%zu nodes, %zu bytes), %zu with a network; "
+                    "leaves of %llu to %llu lattice voxels\n",
+                    leaves, a.tree.size(), 4 + 8 * a.tree.size(), a.voxels.size(), (unsigned long long)smallest,
+                    (unsigned long long)largest);
+    }
     std::printf("network: %u-%s%u, ReLU, output %s, %llu parameters, weights %s (%llu bytes)\n", t.inputs, widths.c_str(),
                 t.outputs, t.outputTransform == format::OutputTransform::Exponential ? "scale x (exp(y) - 1)" : "scale x max(0, y)",
                 (unsigned long long)t.parameterCount(), t.weightEncoding == format::WeightEncoding::Float16 ? "fp16" : "fp32",

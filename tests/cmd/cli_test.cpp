@@ -175,10 +175,15 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
     std::string dir = test::temporaryDirectory();
     std::string out = " -o '" + dir + "/x.nrad' -q";
     for (const char* flags : {"--grid 0", "--grid 2x2", "--grid 3x3x999", "--hidden 0", "--hidden 9,x", "--loss huber",
-                              "--encoding fp8", "--points 0", "--epochs 0", "--learning-rate -1", "--no-such-flag"}) {
+                              "--encoding fp8", "--points 0", "--epochs 0", "--learning-rate -1", "--no-such-flag",
+                              "--budget 12Q", "--budget -5", "--budget 0", "--budget 300", "--budget 8K --levels 11",
+                              "--budget 8K --min-leaf-samples 2"}) {
         RunResult r = run("bake " + cornell() + out + " " + flags);
         EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
     }
+    // A budget below one network's asset names the smallest one.
+    EXPECT_NE(run("bake " + cornell() + out + " --budget 300").output.find("below the smallest asset of one network (564 bytes)"),
+              std::string::npos);
     std::string bad = test::sourcePath("tests/data/malformed/index-out-of-range.gltf");
     RunResult r = run("bake '" + bad + "'" + out);
     EXPECT_EQ(r.exitCode, 3);

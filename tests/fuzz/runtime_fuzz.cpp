@@ -1,15 +1,69 @@
 // Fuzz target for the runtime: load arbitrary bytes (copying and borrowing); if they load, query the asset
 // and evaluate points derived from the input, single and batched, in both layouts. Any crash, sanitizer
-// report or non-finite radiance is a bug. Built by tests/fuzz/CMakeLists.txt (clang, libFuzzer, ASan, UBSan).
+// report or non-finite radiance is a bug. Partition trees are also built straight from the input's bytes with
+// valid CRCs (fuzzTree), so mutations reach the tree's validation. Built by tests/fuzz/CMakeLists.txt (clang, libFuzzer, ASan, UBSan).
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <vector>
 
+#include <nrad/format.h>
 #include <nrad/nrad.h>
 
+namespace {
+
+// Partition trees past the CRCs (format 2.2): the input's bytes read as TREE nodes of a 16^3 lattice,
+// wrapped in an asset whose CRCs hold, so every mutation reaches the tree's validation; what loads is
+// evaluated over the whole lattice and must give finite, non-negative radiance.
+void fuzzTree(const uint8_t* data, size_t size) {
+    if (size < 9) return;
+    nrad::format::Asset a;
+    for (int k = 0; k < 3; ++k) {
+        a.grid.lower[k] = 0.0f;
+        a.grid.upper[k] = 1.0f;
+        a.grid.dims[k] = 16;
+    }
+    a.header.flags = nrad::format::kFlagScatteredRadiance | nrad::format::kFlagTree;
+    if (data[0] & 1) {
+        a.header.flags |= nrad::format::kFlagBlended;
+        a.grid.blendBand = 0.5f * float(1 + (data[0] >> 1)) / 128.0f;
+    }
+    a.topology.hiddenWidths = {2};
+    for (size_t at = 1; at + 8 <= size && a.tree.size() < 4096; at += 8) {
+        uint32_t word, child;
+        std::memcpy(&word, data + at, 4);
+        std::memcpy(&child, data + at + 4, 4);
+        a.tree.push_back({word & 3u, word >> 2, child});
+    }
+    a.voxels = {{0, 1.0f}};
+    a.weights.assign(a.topology.parameterCount(), 0.25f);
+    const std::vector<uint8_t> bytes = nrad::format::encode(a);
+    NradAsset asset = nullptr;
+    if (nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0) != NRAD_OK) {
+        if (asset) std::abort();
+        return;
+    }
+    uint32_t leaves = 0;
+    if (!nrad::format::validateTree(a.grid.dims, a.tree, leaves)) std::abort();  // loaded: must be a valid tree
+    const size_t n = 16 * 16;
+    std::vector<float> p(3 * n), nrm(3 * n, 0.0f), dir(3 * n, 0.0f), rgb(3 * n);
+    for (size_t i = 0; i < n; ++i) {
+        p[3 * i] = (float(i % 16) + 0.5f) / 16.0f;
+        p[3 * i + 1] = (float(i / 16) + 0.37f) / 16.0f;
+        p[3 * i + 2] = float(data[i % size]) / 255.0f;
+        nrm[3 * i + 2] = dir[3 * i + 2] = 1.0f;
+    }
+    nradEvaluateBatch(asset, n, p.data(), nrm.data(), dir.data(), rgb.data(), nullptr);
+    for (float v : rgb)
+        if (!std::isfinite(v) || v < 0.0f) std::abort();
+    nradReleaseAsset(asset);
+}
+
+}  // namespace
+
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    fuzzTree(data, size);
     for (uint32_t flags : {uint32_t(NRAD_LOAD_COPY), uint32_t(NRAD_LOAD_BORROW)}) {
         NradAsset asset = nullptr;
         char message[64];
