@@ -122,9 +122,11 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
             const glm::vec3 y = settings.train.demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
             learned[i] = float(std::log(std::max(0.0, luminance(y)) + 0.1));
         }
-        // The metadata: what it holds without the per-network list, and at most 16 bytes per entry of that list.
+        // The metadata, exactly: a budgeted asset's metadata leaves out the per-network error list (--stats has
+        // it), so it depends on nothing that refining changes.
         BakeResult none;
-        reserve = {assetMetadata(scene, settings, none).size() + 64, 16};
+        none.sampleCount = result.sampleCount;
+        reserve = {assetMetadata(scene, settings, none).size(), 0};
         if (!settings.metadata) reserve = {};
         result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve);
         const AdaptivePartition& ap = result.partition;
@@ -220,10 +222,13 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
     // indirect light). Empty: the asset holds all the scattered light.
     j["engine_drawn_direct"] = engine;
     j["samples"] = result.sampleCount;
-    // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6.
-    std::vector<double> err;
-    for (const VoxelTrainResult& v : result.voxels) err.push_back(std::round(v.heldOutRelMse * 1e6) / 1e6);
-    j["held_out_relmse"] = err;
+    // Held-out relMSE per occupied voxel, in VOXL order, rounded to 1e-6 (not in budgeted assets, whose bytes go to
+    // networks: their --stats hold it).
+    if (settings.partition.budgetBytes == 0) {
+        std::vector<double> err;
+        for (const VoxelTrainResult& v : result.voxels) err.push_back(std::round(v.heldOutRelMse * 1e6) / 1e6);
+        j["held_out_relmse"] = err;
+    }
     return j.dump();
 }
 

@@ -26,6 +26,7 @@ namespace {
 constexpr int kFeatures = 10;  // 1, position (3), normal (3), direction (3)
 constexpr int kMoments = kFeatures * (kFeatures + 1) / 2;
 constexpr size_t kMaxStatSamples = 8192;  // a split's statistics from at most this many of a cell's samples
+constexpr uint32_t kCandidateBins = 8;  // candidate planes at the eighths of each axis
 
 // Sufficient statistics of a least-squares fit: sum f f^T (upper triangle), sum f y, sum y^2, count.
 struct Moments {
@@ -40,6 +41,14 @@ struct Moments {
         }
         s += double(y) * double(y);
         n += 1.0;
+    }
+    Moments plus(const Moments& o) const {
+        Moments r;
+        for (int i = 0; i < kMoments; ++i) r.m[i] = m[i] + o.m[i];
+        for (int i = 0; i < kFeatures; ++i) r.v[i] = v[i] + o.v[i];
+        r.s = s + o.s;
+        r.n = n + o.n;
+        return r;
     }
     Moments minus(const Moments& o) const {
         Moments r;
@@ -134,42 +143,57 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
     cells[0].samples.resize(n);
     for (size_t i = 0; i < n; ++i) cells[0].samples[i] = uint32_t(i);
 
-    // Finds a cell's residual and best split (the midpoint of one axis, chosen by gain).
+    // Finds a cell's residual and best split: candidate planes at the eighths of each axis's extent (on the
+    // lattice), the statistics of the samples between consecutive planes summed into both sides of each.
     auto evaluate = [&](BuildCell& c) {
         const size_t count = c.samples.size();
         const size_t stride = std::max<size_t>(1, (count + kMaxStatSamples - 1) / kMaxStatSamples);
-        Moments all, lower[3];
-        uint32_t mid[3];
-        bool splittable[3];
-        size_t lowerCount[3] = {0, 0, 0};
+        std::vector<uint32_t> planes[3];
         for (int k = 0; k < 3; ++k) {
-            splittable[k] = c.box.hi[k] - c.box.lo[k] >= 2;
-            mid[k] = c.box.lo[k] + (c.box.hi[k] - c.box.lo[k]) / 2;
+            const uint32_t lo = c.box.lo[k], extent = c.box.hi[k] - c.box.lo[k];
+            for (uint32_t j = 1; j < kCandidateBins; ++j) {
+                const uint32_t plane = lo + uint32_t((uint64_t(extent) * j + kCandidateBins / 2) / kCandidateBins);
+                if (plane > lo && plane < c.box.hi[k] && (planes[k].empty() || planes[k].back() != plane)) planes[k].push_back(plane);
+            }
+        }
+        std::vector<Moments> bins[3];
+        std::vector<size_t> binCount[3];
+        for (int k = 0; k < 3; ++k) {
+            bins[k].resize(planes[k].size() + 1);
+            binCount[k].assign(planes[k].size() + 1, 0);
         }
         for (size_t j = 0; j < count; ++j) {
             const uint32_t i = c.samples[j];
             const bool used = j % stride == 0;
             for (int k = 0; k < 3; ++k) {
-                const bool below = t[3 * size_t(i) + size_t(k)] < float(mid[k]);
-                lowerCount[k] += below ? 1 : 0;
-                if (used && below && splittable[k]) lower[k].add(&features[kFeatures * size_t(i)], learned[i]);
+                const float tk = t[3 * size_t(i) + size_t(k)];
+                size_t bin = 0;
+                while (bin < planes[k].size() && tk >= float(planes[k][bin])) ++bin;
+                ++binCount[k][bin];
+                if (used) bins[k][bin].add(&features[kFeatures * size_t(i)], learned[i]);
             }
-            if (used) all.add(&features[kFeatures * size_t(i)], learned[i]);
         }
+        Moments all;
+        for (const Moments& m : bins[0]) all = all.plus(m);
         const double weight = double(stride);  // the statistics stand for every sample
         c.residual = all.residual() * weight;
         c.canSplit = false;
         for (int k = 0; k < 3; ++k) {
-            if (!splittable[k]) continue;
-            const size_t lo = lowerCount[k], hi = count - lowerCount[k];
-            if ((lo > 0 && lo < settings.minLeafSamples) || (hi > 0 && hi < settings.minLeafSamples)) continue;
-            const double gain = c.residual - (lower[k].residual() + all.minus(lower[k]).residual()) * weight;
-            if (!c.canSplit || gain > c.bestGain) {
-                c.canSplit = true;
-                c.bestAxis = uint32_t(k);
-                c.bestSplit = mid[k];
-                c.bestGain = gain;
-                c.bestMakesNetwork = lo > 0 && hi > 0;
+            Moments lower;
+            size_t lo = 0;
+            for (size_t j = 0; j < planes[k].size(); ++j) {
+                lower = lower.plus(bins[k][j]);
+                lo += binCount[k][j];
+                const size_t hi = count - lo;
+                if ((lo > 0 && lo < settings.minLeafSamples) || (hi > 0 && hi < settings.minLeafSamples)) continue;
+                const double gain = c.residual - (lower.residual() + all.minus(lower).residual()) * weight;
+                if (!c.canSplit || gain > c.bestGain) {
+                    c.canSplit = true;
+                    c.bestAxis = uint32_t(k);
+                    c.bestSplit = planes[k][j];
+                    c.bestGain = gain;
+                    c.bestMakesNetwork = lo > 0 && hi > 0;
+                }
             }
         }
         if (c.canSplit && !(c.bestGain > 0.0)) c.canSplit = false;

@@ -38,11 +38,11 @@ TEST(Partition, TheBudgetIsNeverExceeded) {
         const std::vector<uint8_t> bytes = format::encode(r.asset);
         EXPECT_LE(bytes.size(), budget);
         EXPECT_EQ(bytes.size(), format::encodedSize(r.asset.topology, r.asset.voxels.size(), r.asset.tree.size(), r.asset.metadata.size()));
-        // The budget is spent, not left: within one more split (a network, its entry, two nodes) and what the
-        // metadata's reserve (64 bytes and 16 per network) did not use, or no split was left to make.
-        const uint64_t perSplit = 8 + 16 + r.asset.topology.parameterCount() * 2 + 16;
-        const uint64_t reserveSlack = 64 + 16 * r.asset.voxels.size();
-        EXPECT_TRUE(bytes.size() + perSplit + reserveSlack > budget || r.partition.splitsSkippedForBudget == 0) << budget;
+        // The budget is spent, not left: within one more split (a network, its entry, two nodes), or no split
+        // was left to make.
+        const uint64_t perSplit = 8 + 16 + r.asset.topology.parameterCount() * 2;
+        EXPECT_TRUE(bytes.size() + perSplit > budget || r.partition.splitsSkippedForBudget == 0) << budget;
+        EXPECT_EQ(bytes.size(), r.partition.bytes);  // the refinement counted every byte
         EXPECT_GT(bytes.size(), previous);
         previous = bytes.size();
         format::Asset back;
