@@ -128,7 +128,37 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         none.sampleCount = result.sampleCount;
         reserve = {assetMetadata(scene, settings, none).size(), 0};
         if (!settings.metadata) reserve = {};
-        result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve);
+        // The scorer: each cell's network trained briefly on (up to 2,000 of) its own samples, with positions
+        // relative to their bounding box; what it leaves is its held-out relMSE times the cell's samples.
+        TrainSettings quick = settings.train;
+        quick.epochs = std::min(quick.epochs, 150);
+        quick.patience = std::min(quick.patience, 50);
+        quick.weightDecays.resize(1);
+        quick.maxAttempts = 1;
+        quick.curveEvery = 1 << 30;
+        const LeafScorer scorer = [&](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
+            std::vector<double> out(ids.size(), 0.0);
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    const std::vector<uint32_t>& set = *sets[k];
+                    if (set.empty()) continue;
+                    const size_t stride = std::max<size_t>(1, (set.size() + 1999) / 2000);
+                    glm::vec3 lo(1e30f), hi(-1e30f);
+                    for (uint32_t i : set) {
+                        lo = glm::min(lo, samples[i].position);
+                        hi = glm::max(hi, samples[i].position);
+                    }
+                    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-6f));
+                    std::vector<VoxelSample> v;
+                    for (size_t j = 0; j < set.size(); j += stride)
+                        v.push_back({&samples[set[j]], 1.0f, 2.0f * (samples[set[j]].position - lo) / extent - 1.0f});
+                    out[k] = trainVoxel(ids[k], v, quick).heldOutRelMse * double(set.size());
+                }
+            });
+            return out;
+        };
+        result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve,
+                                           settings.partition.measured ? scorer : LeafScorer());
         const AdaptivePartition& ap = result.partition;
         const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
         byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](const TrainingSample& s) {

@@ -114,7 +114,7 @@ struct Candidate {
 
 AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
                                   const std::vector<float>& learned, const format::Topology& topology,
-                                  const PartitionSettings& settings, const MetadataReserve& reserve) {
+                                  const PartitionSettings& settings, const MetadataReserve& reserve, const LeafScorer& scorer) {
     const float factor[3] = {eval::gridFactor(lattice, 0), eval::gridFactor(lattice, 1), eval::gridFactor(lattice, 2)};
     const size_t n = samples.size();
     // Each sample's lattice coordinate and features (position scaled to the box).
@@ -213,15 +213,13 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         const uint64_t cost = 16 + (c.bestMakesNetwork ? perNetwork : 0);
         queue.push({c.bestGain / double(cost), id});
     };
-    push(0);
-    while (!queue.empty()) {
-        const Candidate best = queue.top();
-        queue.pop();
-        BuildCell& c = cells[best.cell];
+    // Splits cell `id` at its best plane if the budget allows; false (and counted) if not.
+    auto split = [&](uint32_t id) {
+        BuildCell& c = cells[id];
         const uint64_t nextNetworks = networks + (c.bestMakesNetwork ? 1 : 0);
         if (bytesOf(nextNetworks, nodes + 2) > settings.budgetBytes || c.depth + 1 > format::kMaxTreeDepth) {
             ++out.splitsSkippedForBudget;
-            continue;
+            return false;
         }
         networks = nextNetworks;
         nodes += 2;
@@ -241,8 +239,51 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         evaluate(hi);
         cells.push_back(std::move(lo));  // invalidates c
         cells.push_back(std::move(hi));
+        return true;
+    };
+
+    // 1. By the residual, up to `residualShare` of the budget's networks (all of it without a scorer).
+    const uint64_t perNetworkOnly = perNetwork + 16;
+    const uint64_t fixed = bytesOf(0, 1);
+    const uint64_t affordable = settings.budgetBytes > fixed ? (settings.budgetBytes - fixed) / perNetworkOnly : 0;
+    const uint64_t phaseOne = scorer ? std::max<uint64_t>(1, uint64_t(double(affordable) * settings.residualShare)) : UINT64_MAX;
+    push(0);
+    while (!queue.empty() && networks < phaseOne) {
+        const Candidate best = queue.top();
+        queue.pop();
+        if (!split(best.cell)) continue;
         push(uint32_t(cells.size() - 2));
         push(uint32_t(cells.size() - 1));
+    }
+    // 2. By the measured error: every leaf's network trained briefly, its held-out error x samples the
+    //    score; the worst quarter (per byte) split each round, at their best planes, until the budget is spent.
+    if (scorer) {
+        std::vector<double> score(cells.size(), -1.0);
+        for (int round = 0; round < 64; ++round) {
+            std::vector<uint32_t> open, unscored;
+            for (uint32_t id = 0; id < uint32_t(cells.size()); ++id)
+                if (cells[id].lower < 0 && cells[id].canSplit) {
+                    open.push_back(id);
+                    if (score.size() <= id || score[id] < 0.0) unscored.push_back(id);
+                }
+            if (open.empty()) break;
+            score.resize(cells.size(), -1.0);
+            std::vector<const std::vector<uint32_t>*> sets;
+            for (uint32_t id : unscored) sets.push_back(&cells[id].samples);
+            const std::vector<double> scores = scorer(unscored, sets);
+            for (size_t i = 0; i < unscored.size(); ++i) score[unscored[i]] = scores[i];
+            std::vector<std::pair<double, uint32_t>> order;
+            for (uint32_t id : open) {
+                const uint64_t cost = 16 + (cells[id].bestMakesNetwork ? perNetwork : 0);
+                order.emplace_back(score[id] / double(cost), id);
+            }
+            std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first != b.first ? a.first > b.first : a.second < b.second; });
+            const size_t take = std::max<size_t>(1, (order.size() + 3) / 4);
+            size_t made = 0;
+            for (size_t i = 0; i < order.size() && made < take; ++i)
+                if (split(order[i].second)) ++made;
+            if (made == 0) break;  // nothing fits any more
+        }
     }
 
     // Emit in the format's order: depth first, lower child first, children adjacent, leaves numbered.

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <nrad/format.h>
@@ -22,6 +23,10 @@ struct PartitionSettings {
     uint64_t budgetBytes = 0;  // 0: no tree, the uniform grid of BakeSettings::grid
     uint32_t levels = 7;  // the lattice: 2^levels voxels along the scene's longest axis, the others in proportion
     uint32_t minLeafSamples = 256;  // samples a leaf with surface keeps at least (of its own, inside it)
+    // With a scorer (the baker's): the share of the budget's networks placed by the residual alone; the rest
+    // goes, a quarter of the open leaves per round, to the leaves whose briefly trained networks err most.
+    double residualShare = 0.5;
+    bool measured = true;  // refine by measured network error after the residual share (else by the residual alone)
 };
 
 // The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).
@@ -51,11 +56,17 @@ struct MetadataReserve {
     uint64_t bytes(uint64_t networks) const { return fixed + perNetwork * networks; }
 };
 
+// Measures cells by their networks (the baker trains one briefly per cell): for cells `ids` (stable
+// identifiers, for seeding) with their sample indices, the error each would leave (held-out relMSE x samples).
+using LeafScorer = std::function<std::vector<double>(const std::vector<uint32_t>& ids,
+                                                     const std::vector<const std::vector<uint32_t>*>& samples)>;
+
 // Refines the lattice `lattice` (a VoxelGrid's grid) for `samples` (their radiance as trained: `learned` gives
 // each sample's value log(0.1 + demodulated luminance)) until no split fits the budget or gains anything.
 // Throws std::runtime_error when even one network does not fit (the message names the smallest budget).
 AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
                                   const std::vector<float>& learned, const format::Topology& topology,
-                                  const PartitionSettings& settings, const MetadataReserve& reserve);
+                                  const PartitionSettings& settings, const MetadataReserve& reserve,
+                                  const LeafScorer& scorer = {});
 
 }  // namespace nrad

@@ -317,6 +317,11 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     series.push_back({"neural: evaluation only", "#98df8a", {{r.neural.evaluationSeconds, r.neural.metrics.relMse}}, false});
     if (r.baseline) series.push_back({"SH probes: whole render", "#ff7f0e", {{r.baseline->seconds, r.baseline->metrics.relMse}}, false});
     writeText(dir / "error-vs-time.svg", svgLogLogPlot("Error against run time", "wall time (s)", "relMSE against the reference", series));
+    {  // Error against bytes: the asset and the SH probes of (about) its bytes.
+        std::vector<PlotSeries> bytes = {{"neural asset (networks + tree)", "#2ca02c", {{double(r.neural.bytes), r.neural.metrics.relMse}}, false}};
+        if (r.baseline) bytes.push_back({"L2 SH probes", "#ff7f0e", {{double(r.baseline->bytes), r.baseline->metrics.relMse}}, false});
+        writeText(dir / "error-vs-bytes.svg", svgLogLogPlot("Error against bytes", "bytes", "relMSE against the reference", bytes));
+    }
     std::vector<BakeCurvePoint> bc = bakeTrainingCurve(bakeStats);
     if (!bc.empty()) {
         PlotSeries mean{"mean over voxels", "#d62728", {}, true}, median{"median over voxels", "#9467bd", {}, true};
@@ -393,7 +398,8 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
       << fmt("%.3g", r.seams.meanRelativeJump) << "). Networks evaluated per visible surface point: "
       << fmt("%.3g", r.seams.evaluationsPerPoint) << " (" << fmt("%.1f", 100.0 * r.seams.blendedShare)
       << "% of the points in a blending band).</p>\n";
-    h << "<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">";
+    h << "<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">"
+         "<img src=\"error-vs-bytes.svg\" alt=\"error against bytes\">";
     if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
     h << "</div>\n";
     if (r.baseline) {
@@ -410,6 +416,43 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
         h << "</table>\n<p>Baseline: " << r.baselineProbes.x << "x" << r.baselineProbes.y << "x" << r.baselineProbes.z
           << " probes fitted by least squares to " << r.baselineTrainingSamples << " training samples (" << escape(r.baselineSamplesNote)
           << "); fit relMSE on those samples " << fmt("%.4g", r.baselineFit.trainRelMse) << ".</p>\n";
+    }
+    if (bakeStats.is_object() && bakeStats.contains("partition") && bakeStats["partition"].is_object()) {
+        // The adaptive partition: its cells, their depth and error, the worst first.
+        const nlohmann::json& p = bakeStats["partition"];
+        std::map<uint64_t, const nlohmann::json*> byLeaf;
+        if (bakeStats.contains("voxels") && bakeStats["voxels"].is_array())
+            for (const auto& v : bakeStats["voxels"])
+                if (v.contains("voxel") && v["voxel"].is_number_unsigned()) byLeaf[v["voxel"].get<uint64_t>()] = &v;
+        std::vector<std::pair<double, const nlohmann::json*>> cells;
+        std::map<int, int> depths;
+        if (p.contains("cells") && p["cells"].is_array())
+            for (const auto& c : p["cells"]) {
+                const uint64_t leaf = c.value("leaf", uint64_t(0));
+                const auto it = byLeaf.find(leaf);
+                const double err = it != byLeaf.end() ? it->second->value("held_out_relmse", 0.0) : -1.0;
+                cells.emplace_back(err, &c);
+                ++depths[c.value("depth", 0)];
+            }
+        std::sort(cells.begin(), cells.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+        h << "<h2>Partition</h2>\n<p>kd-tree of " << p.value("leaves", 0) << " leaves (" << p.value("networks", 0)
+          << " with surface, each a network) on a lattice of ";
+        if (p.contains("lattice") && p["lattice"].is_array() && p["lattice"].size() == 3)
+            h << p["lattice"][0].get<int>() << "x" << p["lattice"][1].get<int>() << "x" << p["lattice"][2].get<int>();
+        h << " voxels, refined under a budget of " << p.value("budget_bytes", uint64_t(0)) << " bytes. Leaves per depth:";
+        for (auto [d, n] : depths) h << " " << d << ": " << n << ";";
+        h << "</p>\n<table><tr><th>leaf</th><th>depth</th><th>lattice box</th><th>samples</th><th>held-out relMSE</th></tr>\n";
+        size_t shown = 0;
+        for (const auto& [err, c] : cells) {
+            if (shown++ == 32) break;
+            const auto& lo = (*c)["lo"];
+            const auto& hi = (*c)["hi"];
+            h << "<tr><td>" << c->value("leaf", 0) << "</td><td>" << c->value("depth", 0) << "</td><td>[" << lo[0] << "," << lo[1]
+              << "," << lo[2] << ") - [" << hi[0] << "," << hi[1] << "," << hi[2] << ")</td><td>" << c->value("samples", 0)
+              << "</td><td>" << (err >= 0.0 ? fmt("%.4g", err) : std::string("no network")) << "</td></tr>\n";
+        }
+        h << "</table>\n<p>The " << std::min<size_t>(32, cells.size()) << " worst of " << cells.size()
+          << " leaves; all of them are in the bake's --stats.</p>\n";
     }
     if (j.contains("bake")) {
         h << "<h2>Bake</h2>\n<table><tr><th>phase</th><th>seconds</th></tr>\n";
