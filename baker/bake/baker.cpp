@@ -115,6 +115,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     const bool adaptive = settings.partition.budgetBytes > 0;
     format::Grid lattice = grid.grid();
     MetadataReserve reserve;
+    auto tPartition = std::chrono::steady_clock::now();
     if (adaptive) {
         lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         std::vector<float> learned(samples.size());
@@ -174,6 +175,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     } else {
         byVoxel = samplesByNetwork(grid, band, samples);
     }
+    result.timings.partition = since(tPartition);
     std::vector<uint32_t> occupied;
     for (uint32_t v = 0; v < uint32_t(byVoxel.size()); ++v)
         if (!byVoxel[v].empty()) occupied.push_back(v);

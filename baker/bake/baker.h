@@ -34,7 +34,7 @@ struct BakeSettings {
 };
 
 struct BakeTimings {
-    double setup = 0.0, sampling = 0.0, training = 0.0;
+    double setup = 0.0, sampling = 0.0, partition = 0.0, training = 0.0;  // partition: refining the kd-tree (--budget)
 };
 
 struct BakeResult {

@@ -287,12 +287,12 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
     std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu dropped, %llu "
                 "non-finite paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
-                "time: load %.2f s, setup %.2f s, sampling %.2f s, training %.2f s, writing %.3f s\n",
+                "time: load %.2f s, setup %.2f s, sampling %.2f s, partition %.2f s, training %.2f s, writing %.3f s\n",
                 o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), unsigned(r.asset.cellCount()),
                 r.asset.tree.empty() ? "voxels" : "leaves", r.sampleCount,
                 (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.droppedSamples,
                 (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
-                loadSeconds, r.timings.setup, r.timings.sampling, r.timings.training, writeSeconds);
+                loadSeconds, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, writeSeconds);
 
     const AdaptivePartition& ap = r.partition;
     if (s.partition.budgetBytes > 0) {
@@ -343,7 +343,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         j["surface_area"] = r.surfaceArea;
         j["held_out_relmse"] = {{"mean", meanErr}, {"worst", worstErr}, {"worst_voxel", worstVoxel}};
         j["seconds"] = {{"load", loadSeconds}, {"setup", r.timings.setup}, {"sampling", r.timings.sampling},
-                        {"training", r.timings.training}, {"writing", writeSeconds}};
+                        {"partition", r.timings.partition}, {"training", r.timings.training}, {"writing", writeSeconds}};
         j["settings"] = nlohmann::json::parse(assetMetadata(scene, s, r))["bake"];
         nlohmann::json voxels = nlohmann::json::array();
         for (const VoxelTrainResult& v : r.voxels) {
