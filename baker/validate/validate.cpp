@@ -336,7 +336,21 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     // 3. Through the asset, as an engine would (the public runtime API).
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
-    const eval::Partition partition = assetPartition(assetPath);
+    // The asset's partition: from its file (a kd-tree needs it); an asset given only in memory is a grid,
+    // whose partition its info holds.
+    eval::Partition partition;
+    if (!assetPath.empty() && std::filesystem::is_regular_file(assetPath)) {
+        partition = assetPartition(assetPath);
+    } else {
+        if (info.contentFlags & NRAD_CONTENT_TREE) throw std::runtime_error("a kd-tree asset must be validated from its file");
+        format::Grid g;
+        for (int k = 0; k < 3; ++k) {
+            g.lower[k] = info.gridLower[k];
+            g.upper[k] = info.gridUpper[k];
+            g.dims[k] = info.gridDims[k];
+        }
+        partition = eval::Partition(g, info.blendBand, {}, 0);
+    }
     const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, partition);
     r.regionOfPixel = pixelRegions(hits);
     r.seams = seamFigure(hits, partition, asset);
