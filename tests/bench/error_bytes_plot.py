@@ -18,7 +18,7 @@ series = []
 for scene, r in rows.items():
     grid = sorted((b, e) for k, b, e, _, _ in r if k == "grid")
     kd = sorted((b, e) for k, b, e, _, _ in r if k == "kd")
-    sh = sorted((b, e) for k, _, _, b, e in r if k == "grid")
+    sh = sorted(set((b, e) for _, _, _, b, e in r))  # the probes of every asset's bytes
     series += [(names.get(scene, scene) + ": uniform grids", colours.get(scene, "#333"), grid, ""),
                (names.get(scene, scene) + ": adaptive kd-tree", colours.get(scene, "#333"), kd, "6,4"),
                (names.get(scene, scene) + ": SH probes", colours.get(scene, "#333"), sh, "1,4")]

@@ -78,10 +78,12 @@ inline Location locate(const format::Grid& g, const float p[3]) {
 // and the rest renormalised (keepOccupied).
 constexpr int kMaxSupports = 8;
 
+// No default member values: arrays of them are declared per point on hot paths, and supports() writes every
+// field of the entries it returns.
 struct Support {
-    int64_t voxel = -1;  // linear index
-    float weight = 0.0f;
-    float local[3] = {0, 0, 0};  // position input relative to this voxel
+    int64_t voxel;  // linear index (the voxel's, or the tree leaf's)
+    float weight;
+    float local[3];  // position input relative to this voxel
 };
 
 // Weight of the voxel above a face for a point at grid coordinate distance x = t - k from it.
@@ -292,47 +294,59 @@ inline int treeSupports(const format::Grid& g, const float factor[3], const Tree
         if (!(p[k] >= g.lower[k] && p[k] <= g.upper[k])) return 0;
         t[k] = gridCoordinate(p[k], g.lower[k], factor[k]);
     }
+    // The descent keeps the current node and weights in registers; a node whose plane blends the point
+    // continues into its lower child and leaves the upper one on the stack (taken after the lower subtree:
+    // leaf order).
     struct Item {
         uint32_t node;
         float w[3];
     };
     Item stack[format::kMaxTreeDepth + 2];
     int top = 0;
-    stack[top++] = {0, {1.0f, 1.0f, 1.0f}};
+    uint32_t node = 0;
     if (v.starts) {
         size_t at = 0;
         for (int k = 2; k >= 0; --k) {
             const int c = int(t[k] * v.startScale[k]);
             at = at * v.startDims[k] + size_t(c < 0 ? 0 : (c >= int(v.startDims[k]) ? int(v.startDims[k]) - 1 : c));
         }
-        stack[0].node = v.starts[at];
+        node = v.starts[at];
     }
+    float w0 = 1.0f, w1 = 1.0f, w2 = 1.0f;
     bool blended[3] = {false, false, false};
     int count = 0;
-    while (top > 0) {
-        const Item it = stack[--top];
-        const format::TreeNode& n = v.nodes[it.node];
-        if (n.axis == format::kTreeLeaf) {
-            if (count == kMaxSupports) continue;
-            out[count].voxel = int64_t(n.child);
-            out[count++].weight = it.w[0] * it.w[1] * it.w[2];
-            continue;
+    for (;;) {
+        for (;;) {
+            const format::TreeNode n = v.nodes[node];
+            if (n.axis == format::kTreeLeaf) break;
+            const int k = int(n.axis);
+            const float x = t[k] - float(n.split), w = v.widths[node];
+            if (w > 0.0f && x > -w && x < w) {
+                const float above = aboveFaceWeight(x, w);
+                blended[k] = true;
+                Item& up = stack[top++];
+                up.node = n.child + 1;
+                up.w[0] = w0;
+                up.w[1] = w1;
+                up.w[2] = w2;
+                up.w[k] = up.w[k] * above;
+                float& wk = k == 0 ? w0 : (k == 1 ? w1 : w2);
+                wk = wk * (1.0f - above);
+                node = n.child;
+            } else {
+                node = x >= 0.0f ? n.child + 1 : n.child;
+            }
         }
-        const int k = int(n.axis);
-        const float x = t[k] - float(n.split), w = v.widths[it.node];
-        if (w > 0.0f && x > -w && x < w) {
-            const float above = aboveFaceWeight(x, w);
-            blended[k] = true;
-            Item lower = it, upper = it;
-            lower.node = n.child;
-            upper.node = n.child + 1;
-            upper.w[k] = it.w[k] * above;
-            lower.w[k] = it.w[k] * (1.0f - above);
-            stack[top++] = upper;
-            stack[top++] = lower;
-        } else {
-            stack[top++] = {x >= 0.0f ? n.child + 1 : n.child, {it.w[0], it.w[1], it.w[2]}};
+        if (count < kMaxSupports) {
+            out[count].voxel = int64_t(v.nodes[node].child);
+            out[count++].weight = w0 * w1 * w2;
         }
+        if (top == 0) break;
+        const Item& it = stack[--top];
+        node = it.node;
+        w0 = it.w[0];
+        w1 = it.w[1];
+        w2 = it.w[2];
     }
     for (int i = 0; i < count; ++i) {
         const format::TreeBox& b = v.boxes[size_t(out[i].voxel)];
