@@ -28,6 +28,7 @@
 #include <nrad/nrad.h>
 
 #include "fma_peak.h"
+#include "../support/test_trees.h"
 
 namespace {
 
@@ -215,8 +216,8 @@ int main(int argc, char** argv) {
     double network = evaluationsPerSecond(asset, incoherent, 1, repeat);
 
     // The kd-tree partition (format 2.2): what locating through the tree costs next to a whole evaluation.
-    // Assets of 9-9-3 fp16 networks on a 128^3 lattice, one tree each (random splits, leaves of many sizes,
-    // every leaf a network), incoherent points, one thread: evaluations/s through the public API (locate
+    // Assets of 9-9-3 fp16 networks on a 128^3 lattice, one tree each (tests/support/test_trees.h: random
+    // planes, leaves of many sizes, every leaf a network), incoherent points, one thread: evaluations/s through the public API (locate
     // included), and in the same run the locate alone (eval::Partition::supports + keepOccupied, what
     // the runtime calls per point) over the same points.
     std::printf("\nkd-tree partition, 1 thread, incoherent points, kernel %d (blend band %g):\n", int(auto_), double(band));
@@ -232,57 +233,9 @@ int main(int argc, char** argv) {
         t.topology = a.topology;
         t.header.flags = nrad::format::kFlagTree | (band > 0.0f ? nrad::format::kFlagBlended : 0u);
         t.grid.blendBand = band;
-        // Balanced-ish random tree: split the cell with the most volume at a random plane of its longest axis.
-        std::vector<nrad::format::TreeBox> open(1);
-        for (int k = 0; k < 3; ++k) open[0].hi[k] = 128;
-        struct Cell { nrad::format::TreeBox box; int lower = -1; uint32_t axis = 0, split = 0; };
-        std::vector<Cell> cells(1);
-        cells[0].box = open[0];
-        std::vector<size_t> leafCells = {0};
-        while (leafCells.size() < leaves) {
-            size_t pick = 0;
-            uint64_t best = 0;
-            for (size_t i = 0; i < leafCells.size(); ++i) {
-                const auto& b = cells[leafCells[i]].box;
-                uint64_t vol = uint64_t(b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]) * (b.hi[2] - b.lo[2]) * (1 + rng() % 4);
-                if (vol > best) { best = vol; pick = i; }
-            }
-            const size_t c = leafCells[pick];
-            nrad::format::TreeBox b = cells[c].box;
-            uint32_t axis = 0;
-            for (uint32_t k = 1; k < 3; ++k) if (b.hi[k] - b.lo[k] > b.hi[axis] - b.lo[axis]) axis = k;
-            const uint32_t extent = b.hi[axis] - b.lo[axis];
-            if (extent < 2) break;
-            const uint32_t split = b.lo[axis] + 1 + uint32_t(rng() % (extent - 1));
-            Cell lo, hi;
-            lo.box = hi.box = b;
-            lo.box.hi[axis] = split;
-            hi.box.lo[axis] = split;
-            cells[c].axis = axis;
-            cells[c].split = split;
-            cells[c].lower = int(cells.size());
-            cells.push_back(lo);
-            cells.push_back(hi);
-            leafCells[pick] = cells.size() - 2;
-            leafCells.push_back(cells.size() - 1);
-        }
-        t.tree.assign(1, {});
+        t.tree = nrad::test::randomTree(t.grid.dims, leaves, leaves);  // random planes, leaves of many sizes
         uint32_t leafCount = 0;
-        struct Emit {
-            std::vector<Cell>& cells; std::vector<nrad::format::TreeNode>& nodes; uint32_t& leaf;
-            void operator()(size_t c, uint32_t at) {
-                if (cells[c].lower < 0) { nodes[at] = {nrad::format::kTreeLeaf, 0, leaf++}; return; }
-                const uint32_t child = uint32_t(nodes.size());
-                nodes.resize(nodes.size() + 2);
-                nodes[at] = {cells[c].axis, cells[c].split, child};
-                (*this)(size_t(cells[c].lower), child);
-                (*this)(size_t(cells[c].lower + 1), child + 1);
-            }
-        };
-        Emit{cells, t.tree, leafCount}(0, 0);
-        std::vector<nrad::format::TreeBox> boxes;
-        uint32_t checked = 0;
-        if (!nrad::format::validateTree(t.grid.dims, t.tree, checked, &boxes)) return 1;
+        if (!nrad::format::validateTree(t.grid.dims, t.tree, leafCount)) return 1;
         uint32_t depth = 0;
         {
             std::vector<std::pair<uint32_t, uint32_t>> stack = {{0, 0}};

@@ -248,37 +248,25 @@ TEST(Tree, DecoderRefusesInvalidTrees) {
         const std::vector<uint8_t> b = encode(a);
         EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTree);
     }
-    // Too deep: a chain of 49 splits along x of a 64-voxel lattice.
+    // Too deep: a chain of 49 splits along x of a 64-voxel lattice (each split's lower child a leaf); 48 are fine.
     {
         const uint32_t wide[3] = {64, 1, 1};
-        std::vector<TreeNode> chain;
-        uint32_t leaf = 0;
-        chain.push_back({});
-        uint32_t at = 0;
-        for (uint32_t i = 0; i < 49; ++i) {
-            const uint32_t c = uint32_t(chain.size());
-            chain.resize(chain.size() + 2);
-            chain[at] = {0, i + 1, c};
-            chain[c] = {kTreeLeaf, 0, leaf++};
-            at = c + 1;
-        }
-        chain[at] = {kTreeLeaf, 0, leaf++};
+        auto chain = [](uint32_t splits) {
+            std::vector<TreeNode> nodes(1);
+            uint32_t leaf = 0, at = 0;
+            for (uint32_t i = 0; i < splits; ++i) {
+                const uint32_t c = uint32_t(nodes.size());
+                nodes.resize(nodes.size() + 2);
+                nodes[at] = {0, i + 1, c};
+                nodes[c] = {kTreeLeaf, 0, leaf++};
+                at = c + 1;
+            }
+            nodes[at] = {kTreeLeaf, 0, leaf};
+            return nodes;
+        };
         uint32_t n = 0;
-        EXPECT_FALSE(validateTree(wide, chain, n));
-        // 48 splits are fine.
-        std::vector<TreeNode> shorter;
-        shorter.push_back({});
-        leaf = 0;
-        at = 0;
-        for (uint32_t i = 0; i < 48; ++i) {
-            const uint32_t c = uint32_t(shorter.size());
-            shorter.resize(shorter.size() + 2);
-            shorter[at] = {0, i + 1, c};
-            shorter[c] = {kTreeLeaf, 0, leaf++};
-            at = c + 1;
-        }
-        shorter[at] = {kTreeLeaf, 0, leaf++};
-        EXPECT_TRUE(validateTree(wide, shorter, n));
+        EXPECT_FALSE(validateTree(wide, chain(49), n));
+        EXPECT_TRUE(validateTree(wide, chain(48), n));
         EXPECT_EQ(n, 49u);
     }
     // VOXL indexes leaves: an index past the last leaf is refused.
