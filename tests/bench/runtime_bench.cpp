@@ -278,7 +278,7 @@ int main(int argc, char** argv) {
                 nrad::eval::Support sup[nrad::eval::kMaxSupports];
                 int c = part.supports(&incoherent.p[3 * i], sup);
                 c = nrad::eval::keepOccupied(sup, c, [](int64_t) { return true; });
-                acc += size_t(c) + size_t(sup[0].voxel);
+                acc += size_t(c) + (c > 0 ? size_t(sup[0].voxel) : 0);
             }
             fma_peak::gSink = fma_peak::gSink + float(acc);
             bestLocate = std::max(bestLocate, double(points) / seconds(t0, clock_type::now()));
