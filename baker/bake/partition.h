@@ -1,11 +1,13 @@
 // The adaptive partition (issue 15): a kd-tree over a fine lattice of the scene's box, refined greedily by
-// the expected error reduction per byte until the asset's byte budget is spent. A cell's expected error is
-// what a smooth model cannot explain of what its network must learn: the residual sum of squares of a
-// least-squares fit, linear in position, normal and direction, of log(0.1 + the demodulated luminance) over
-// the cell's training samples (a difference of that log is the relative error with relMSE's floor, so the
-// residual weighs dark and bright cells as the validation's relMSE does). A split's gain is the parent's residual minus its children's; it costs one
-// network (when both children hold surface) and two tree nodes. Cells never split where there is no surface
-// (a child without samples gets no network) and keep at least minLeafSamples samples each.
+// the expected error reduction per byte until the asset's byte budget is spent. First by the residual: a
+// cell's expected error is what a smooth model cannot explain of what its network must learn, the residual
+// sum of squares of a least-squares fit, linear in position, normal and direction, of log(0.1 + the
+// demodulated luminance) over the cell's training samples (a difference of that log is the relative error
+// with relMSE's floor, so dark and bright cells weigh as in the validation's relMSE); a split's gain is the
+// parent's residual minus its children's, at the best of seven planes per axis. Then, with a scorer, by the
+// measured error of each leaf's briefly trained network. A split costs one network (when both children hold
+// surface) and two tree nodes. Cells never split where there is no surface (a child without samples gets no
+// network) and keep at least minLeafSamples samples each.
 #pragma once
 
 #include <cstdint>
