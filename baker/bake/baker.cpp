@@ -30,6 +30,38 @@ void hashBytes(uint64_t& h, const T* data, size_t count) {
         h *= 0x100000001b3ull;
     }
 }
+
+// The partition's measured phase: each cell's network trained briefly on (up to 2,000 of) its own samples,
+// positions relative to their bounding box; what it leaves is its held-out relMSE times the cell's samples.
+LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const TrainSettings& train) {
+    TrainSettings quick = train;
+    quick.epochs = std::min(quick.epochs, 150);
+    quick.patience = std::min(quick.patience, 50);
+    quick.weightDecays.resize(1);
+    quick.maxAttempts = 1;
+    quick.curveEvery = 1 << 30;
+    return [&samples, quick](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
+        std::vector<double> out(ids.size(), 0.0);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t k = r.begin(); k != r.end(); ++k) {
+                const std::vector<uint32_t>& set = *sets[k];
+                if (set.empty()) continue;
+                const size_t stride = std::max<size_t>(1, (set.size() + 1999) / 2000);
+                glm::vec3 lo(1e30f), hi(-1e30f);
+                for (uint32_t i : set) {
+                    lo = glm::min(lo, samples[i].position);
+                    hi = glm::max(hi, samples[i].position);
+                }
+                const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-6f));
+                std::vector<VoxelSample> v;
+                for (size_t j = 0; j < set.size(); j += stride)
+                    v.push_back({&samples[set[j]], 1.0f, 2.0f * (samples[set[j]].position - lo) / extent - 1.0f});
+                out[k] = trainVoxel(ids[k], v, quick).heldOutRelMse * double(set.size());
+            }
+        });
+        return out;
+    };
+}
 }  // namespace
 
 uint64_t sceneHash(const Scene& scene) {
@@ -129,44 +161,15 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         none.sampleCount = result.sampleCount;
         reserve = {assetMetadata(scene, settings, none).size(), 0};
         if (!settings.metadata) reserve = {};
-        // The scorer: each cell's network trained briefly on (up to 2,000 of) its own samples, with positions
-        // relative to their bounding box; what it leaves is its held-out relMSE times the cell's samples.
-        TrainSettings quick = settings.train;
-        quick.epochs = std::min(quick.epochs, 150);
-        quick.patience = std::min(quick.patience, 50);
-        quick.weightDecays.resize(1);
-        quick.maxAttempts = 1;
-        quick.curveEvery = 1 << 30;
-        const LeafScorer scorer = [&](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
-            std::vector<double> out(ids.size(), 0.0);
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-                for (size_t k = r.begin(); k != r.end(); ++k) {
-                    const std::vector<uint32_t>& set = *sets[k];
-                    if (set.empty()) continue;
-                    const size_t stride = std::max<size_t>(1, (set.size() + 1999) / 2000);
-                    glm::vec3 lo(1e30f), hi(-1e30f);
-                    for (uint32_t i : set) {
-                        lo = glm::min(lo, samples[i].position);
-                        hi = glm::max(hi, samples[i].position);
-                    }
-                    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-6f));
-                    std::vector<VoxelSample> v;
-                    for (size_t j = 0; j < set.size(); j += stride)
-                        v.push_back({&samples[set[j]], 1.0f, 2.0f * (samples[set[j]].position - lo) / extent - 1.0f});
-                    out[k] = trainVoxel(ids[k], v, quick).heldOutRelMse * double(set.size());
-                }
-            });
-            return out;
-        };
         result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve,
-                                           settings.partition.measured ? scorer : LeafScorer());
+                                           settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer());
         const AdaptivePartition& ap = result.partition;
         const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
-        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](const TrainingSample& s) {
-            const format::TreeBox& b = ap.leaves[ap.leafOfSample[size_t(&s - samples.data())]].box;
+        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
+            const format::TreeBox& b = ap.leaves[ap.leafOfSample[i]].box;
             glm::vec3 local;
             for (int k = 0; k < 3; ++k) {
-                const float t = std::clamp(eval::gridCoordinate(s.position[k], lattice.lower[k], partition.factor[k]), 0.0f,
+                const float t = std::clamp(eval::gridCoordinate(samples[i].position[k], lattice.lower[k], partition.factor[k]), 0.0f,
                                            float(lattice.dims[k]));
                 local[k] = eval::clampUnit(eval::localInBox(t, b.lo[k], b.hi[k]));
             }

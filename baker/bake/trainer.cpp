@@ -49,7 +49,7 @@ double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& refere
 
 std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& partition, const std::vector<uint32_t>& cellOfSample,
                                                        const std::vector<TrainingSample>& samples,
-                                                       const std::function<glm::vec3(const TrainingSample&)>& ownPosition) {
+                                                       const std::function<glm::vec3(size_t)>& ownPosition) {
     std::vector<std::vector<VoxelSample>> out(size_t(partition.cells));
     std::vector<uint8_t> occupied(size_t(partition.cells), 0);
     for (uint32_t c : cellOfSample) occupied[c] = 1;
@@ -62,7 +62,7 @@ std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& pa
         for (int k = 0; k < count; ++k)
             out[size_t(sup[k].voxel)].push_back({&s, sup[k].weight, glm::vec3(sup[k].local[0], sup[k].local[1], sup[k].local[2])});
         if (count == 0)  // rounded just outside the box (training_samples.cpp keeps its piece's voxel): its own cell
-            out[cellOfSample[i]].push_back({&s, 1.0f, ownPosition(s)});
+            out[cellOfSample[i]].push_back({&s, 1.0f, ownPosition(i)});
     }
     return out;
 }
@@ -71,7 +71,7 @@ std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, fl
     std::vector<uint32_t> own(samples.size());
     for (size_t i = 0; i < samples.size(); ++i) own[i] = samples[i].voxel;
     return samplesByNetwork(eval::Partition(grid.grid(), band, {}, 0), own, samples,
-                            [&](const TrainingSample& s) { return grid.positionInVoxel(s.position, s.voxel); });
+                            [&](size_t i) { return grid.positionInVoxel(samples[i].position, samples[i].voxel); });
 }
 
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,

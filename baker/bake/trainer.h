@@ -85,10 +85,10 @@ struct VoxelSample {
 // by voxel; the order is the samples' order.
 std::vector<std::vector<VoxelSample>> samplesByNetwork(const VoxelGrid& grid, float band, const std::vector<TrainingSample>& samples);
 // The same for any partition (the grid or a kd-tree): cellOfSample[i] is sample i's own cell (a cell is
-// occupied when it holds one), ownPosition its position input there when it lies just outside the box.
+// occupied when it holds one), ownPosition(i) its position input there when it lies just outside the box.
 std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& partition, const std::vector<uint32_t>& cellOfSample,
                                                        const std::vector<TrainingSample>& samples,
-                                                       const std::function<glm::vec3(const TrainingSample&)>& ownPosition);
+                                                       const std::function<glm::vec3(size_t)>& ownPosition);
 // Radiance from the network's outputs.
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]);
 // relMSE of one prediction against its reference (mean over the three channels).

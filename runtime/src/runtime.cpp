@@ -32,9 +32,7 @@ struct NradAsset_ {
     size_t metadataLength = 0;
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // cell -> network, -1 = empty; used when the grid is small enough
-    eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves)
-    float gridFactor[3] = {1, 1, 1};  // eval::gridFactor of each axis
-    float blendBand = 0.0f;  // the grid's band with kFlagBlended, else 0 (one network per point)
+    eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves), its band
     std::vector<float> scales;  // per network: the voxel's output scale
 };
 
@@ -135,12 +133,9 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
         std::string().swap(a->asset.metadata);
     }
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
-    for (int k = 0; k < 3; ++k) a->gridFactor[k] = eval::gridFactor(a->asset.grid, k);
-    if (a->asset.header.flags & format::kFlagBlended) a->blendBand = a->asset.grid.blendBand;
     a->partition = eval::Partition(a->asset);
     std::vector<format::TreeNode>().swap(a->asset.tree);  // the partition holds it
-    // A dense cell -> network table when it is small next to the networks themselves (always for a tree,
-    // whose leaves are fewer than its nodes); else binary search.
+    // A dense cell -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->partition.cells;
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
         a->denseLookup.assign(size_t(voxels), -1);
@@ -272,10 +267,10 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
         for (int k = 0; k < 3; ++k) {
             ctx.grid.lower[k] = g.lower[k];
             ctx.grid.upper[k] = g.upper[k];
-            ctx.grid.factor[k] = a.gridFactor[k];
+            ctx.grid.factor[k] = a.partition.factor[k];
             ctx.grid.dims[k] = g.dims[k];
         }
-        ctx.grid.band = a.blendBand;
+        ctx.grid.band = a.partition.band;
         ctx.grid.dense = a.denseLookup.data();
         ctx.networks = first;
         ctx.paramsPerNetwork = a.paramsPerNetwork;
@@ -428,7 +423,7 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.weightEncoding = uint32_t(t.weightEncoding);
         r.outputTransform = uint32_t(t.outputTransform);
         r.contentFlags = a->asset.header.flags & format::kKnownFlags;  // NRAD_CONTENT_* are the header's flags
-        r.blendBand = a->blendBand;
+        r.blendBand = a->partition.band;
         r.fileBytes = a->fileBytes;
         r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
                         a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +

@@ -6,6 +6,7 @@
 #include "baker/render/accel.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
+#include "baker/util/threads.h"
 
 namespace nrad::test {
 
@@ -107,6 +108,11 @@ Image renderPathTraced(const Scene& scene, int size, int spp, int maxDepth, uint
     s.seed = seed;
     s.tileSize = tileSize;
     return tracer.render(scene.cameras[0], s);
+}
+
+std::vector<uint8_t> bakeBytes(const Scene& scene, const BakeSettings& settings, int threads) {
+    ThreadScope scope(threads);
+    return format::encode(bakeScene(scene, settings).asset);
 }
 
 }  // namespace nrad::test

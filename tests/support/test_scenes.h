@@ -1,6 +1,7 @@
 // Scenes built in code for analytic tests: a closed emitting sphere (furnace) and a lit plane.
 #pragma once
 
+#include "baker/bake/baker.h"
 #include "baker/render/image_io.h"
 #include "baker/scene/scene.h"
 
@@ -18,5 +19,8 @@ Scene makeLitPlane(float albedo, float halfSize = 10.0f);
 
 // Path traces scene.cameras[0] into a size x size image (NEE by power, MIS; maxDepth 0 = unbounded).
 Image renderPathTraced(const Scene& scene, int size, int spp, int maxDepth = 0, uint32_t seed = 1, int tileSize = 16);
+
+// The encoded asset of bakeScene(scene, settings) with `threads` worker threads.
+std::vector<uint8_t> bakeBytes(const Scene& scene, const BakeSettings& settings, int threads);
 
 }  // namespace nrad::test

@@ -76,16 +76,8 @@ TEST(Bake, ByteIdenticalForOneAndTwoThreads) {
     BakeSettings s = smallSettings();
     s.samples.points = 1500;
     s.samples.paths = 16;
-    std::vector<uint8_t> one, two;
-    {
-        ThreadScope threads(1);
-        one = format::encode(bakeScene(scene, s).asset);
-    }
-    {
-        ThreadScope threads(2);
-        two = format::encode(bakeScene(scene, s).asset);
-    }
-    EXPECT_EQ(one, two);
+    const std::vector<uint8_t> one = test::bakeBytes(scene, s, 1);
+    EXPECT_EQ(test::bakeBytes(scene, s, 2), one);
     s.samples.seed = s.train.seed = 8;
     EXPECT_NE(format::encode(bakeScene(scene, s).asset), one);  // the seed is really used
 }
@@ -452,16 +444,8 @@ TEST(Bake, ByteIdenticalForOneAndTwoThreadsUnderAnEnvironmentMap) {
     s.grid = glm::uvec3(2, 2, 1);
     s.samples.points = 800;
     s.samples.paths = 8;
-    std::vector<uint8_t> one, two;
-    {
-        ThreadScope threads(1);
-        one = format::encode(bakeScene(scene, s).asset);
-    }
-    {
-        ThreadScope threads(2);
-        two = format::encode(bakeScene(scene, s).asset);
-    }
-    EXPECT_EQ(one, two);
+    const std::vector<uint8_t> one = test::bakeBytes(scene, s, 1);
+    EXPECT_EQ(test::bakeBytes(scene, s, 2), one);
     scene.environment.rotationDegrees = 34.0f;  // the map is really used
     EXPECT_NE(format::encode(bakeScene(scene, s).asset), one);
 }

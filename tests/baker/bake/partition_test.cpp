@@ -63,16 +63,7 @@ TEST(Partition, ByteIdenticalForOneAndTwoThreads) {
     Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
     BakeSettings s = tinySettings(5000);
     s.samples.points = 4000;
-    std::vector<uint8_t> one, two;
-    {
-        ThreadScope threads(1);
-        one = format::encode(bakeScene(scene, s).asset);
-    }
-    {
-        ThreadScope threads(2);
-        two = format::encode(bakeScene(scene, s).asset);
-    }
-    EXPECT_EQ(one, two);
+    EXPECT_EQ(test::bakeBytes(scene, s, 1), test::bakeBytes(scene, s, 2));
 }
 
 // A white plane 20 x 20 under a sharp sun straight above, and a bar 0.5 wide floating 2 above it across the
