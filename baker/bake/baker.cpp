@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
+#include "baker/bake/network_field.h"
 #include "baker/render/accel.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
@@ -62,7 +63,43 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
         return out;
     };
 }
+// The cell of a point of a sample (inside the box up to rounding: clamped into it).
+uint32_t cellOfPoint(const eval::Partition& partition, const glm::vec3& p) {
+    float q[3];
+    for (int k = 0; k < 3; ++k) {
+        const float t = std::clamp(eval::gridCoordinate(p[k], partition.grid.lower[k], partition.factor[k]), 0.0f,
+                                   std::nextafter(float(partition.grid.dims[k]), 0.0f));
+        q[k] = partition.grid.lower[k] + t / partition.factor[k];
+    }
+    const int64_t c = partition.cellOf(q);
+    return c >= 0 ? uint32_t(c) : 0u;
+}
+
+// The position input of a sample in its own cell when it lies just outside the box (samplesByNetwork).
+glm::vec3 positionInCell(const eval::Partition& partition, const AdaptivePartition& ap, bool adaptive, const VoxelGrid& grid,
+                         const glm::vec3& p, uint32_t cell) {
+    if (!adaptive) return grid.positionInVoxel(p, cell);
+    const format::TreeBox& b = ap.leaves[cell].box;
+    glm::vec3 local;
+    for (int k = 0; k < 3; ++k) {
+        const float t = std::clamp(eval::gridCoordinate(p[k], partition.grid.lower[k], partition.factor[k]), 0.0f,
+                                   float(partition.grid.dims[k]));
+        local[k] = eval::clampUnit(eval::localInBox(t, b.lo[k], b.hi[k]));
+    }
+    return local;
+}
 }  // namespace
+
+const char* trainingMethodName(TrainingMethod method) { return method == TrainingMethod::Integral ? "integral" : "monte-carlo"; }
+
+bool parseTrainingMethod(const std::string& name, TrainingMethod& method) {
+    for (TrainingMethod m : {TrainingMethod::MonteCarlo, TrainingMethod::Integral})
+        if (name == trainingMethodName(m)) {
+            method = m;
+            return true;
+        }
+    return false;
+}
 
 uint64_t sceneHash(const Scene& scene) {
     uint64_t h = 0xcbf29ce484222325ull;
@@ -166,14 +203,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         const AdaptivePartition& ap = result.partition;
         const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
         byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
-            const format::TreeBox& b = ap.leaves[ap.leafOfSample[i]].box;
-            glm::vec3 local;
-            for (int k = 0; k < 3; ++k) {
-                const float t = std::clamp(eval::gridCoordinate(samples[i].position[k], lattice.lower[k], partition.factor[k]), 0.0f,
-                                           float(lattice.dims[k]));
-                local[k] = eval::clampUnit(eval::localInBox(t, b.lo[k], b.hi[k]));
-            }
-            return local;
+            return positionInCell(partition, ap, true, grid, samples[i].position, ap.leafOfSample[i]);
         });
     } else {
         byVoxel = samplesByNetwork(grid, band, samples);
@@ -194,25 +224,108 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     });
     result.timings.training = since(t2);
 
-    format::Asset& a = result.asset;
-    a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
-    if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
-    a.grid = lattice;
-    if (band > 0.0f) {
-        a.header.flags |= format::kFlagBlended;
-        a.grid.blendBand = band;
+    const eval::Partition partition = adaptive ? eval::Partition(lattice, band, result.partition.tree, result.partition.leafCount)
+                                               : eval::Partition(lattice, band, {}, 0);
+    auto assemble = [&]() {
+        format::Asset& a = result.asset;
+        a = format::Asset{};
+        a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
+        if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
+        a.grid = lattice;
+        if (band > 0.0f) {
+            a.header.flags |= format::kFlagBlended;
+            a.grid.blendBand = band;
+        }
+        if (adaptive) {
+            a.header.flags |= format::kFlagTree;
+            a.tree = result.partition.tree;
+            a.leafCount = result.partition.leafCount;
+        }
+        a.topology = topology;
+        for (const VoxelTrainResult& v : result.voxels) {
+            a.voxels.push_back({v.voxel, v.scale});
+            a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
+        }
+        if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
+    };
+
+    if (settings.training == TrainingMethod::Integral) {
+        // Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are one
+        // bounce with the networks as they stood for the rest of the path, each network continuing from
+        // where it was. Targets of a round come from the networks before it (frozen while it is sampled), and
+        // every network trains on its own samples, so the result does not depend on the threads.
+        const IntegralSettings& in = settings.integral;
+        GenerationStats start;
+        start.samples = samples.size();
+        start.rays = result.sampleStats.rays.total();
+        start.samplingSeconds = result.timings.sampling;
+        start.trainingSeconds = result.timings.training;
+        for (const VoxelTrainResult& v : result.voxels) start.heldOutRelMse += v.heldOutRelMse / double(std::max<size_t>(1, result.voxels.size()));
+        start.learningRate = settings.train.learningRate;
+        result.generations.push_back(start);
+        if (progress.generation) {
+            assemble();
+            progress.generation(0, result);
+        }
+        NetworkField field(partition, topology, topology.outputTransform, settings.train.demodulate);
+        std::vector<NetworkState> states(result.voxels.size());
+        for (size_t k = 0; k < states.size(); ++k) {
+            field.set(result.voxels[k].voxel, result.voxels[k].params, result.voxels[k].scale);
+            states[k].result = result.voxels[k];
+        }
+        const ScatteredRadiance tail = [&field](const SurfaceInteraction& si) { return field.scattered(si); };
+        SampleSettings round = settings.samples;
+        round.points = in.points > 0 ? in.points : settings.samples.points;
+        round.paths = std::max(1u, in.paths);
+        round.firstPoint = settings.samples.points;
+        TargetEstimator estimator{&tail, std::max(1, in.bounces)};
+        for (uint32_t g = 1; g <= in.generations; ++g) {
+            GenerationStats gs;
+            gs.generation = g;
+            const float f = in.generations > 1 ? float(g - 1) / float(in.generations - 1) : 1.0f;
+            gs.learningRate = in.learningRate * std::pow(in.finalLearningRate / in.learningRate, f);
+            round.generation = g;
+            auto ts = std::chrono::steady_clock::now();
+            SampleStats stats;
+            std::vector<TrainingSample> fresh = generateTrainingSamples(scene, tracer, grid, pieces, round, stats, {}, nullptr, estimator);
+            round.firstPoint += round.points;
+            gs.samples = fresh.size();
+            gs.rays = stats.rays.total();
+            result.sampleStats.rays += stats.rays;
+            result.sampleStats.nonFinitePaths += stats.nonFinitePaths;
+            result.sampleCount += fresh.size();
+            std::vector<uint32_t> cells(fresh.size());
+            for (size_t i = 0; i < fresh.size(); ++i) cells[i] = adaptive ? cellOfPoint(partition, fresh[i].position) : fresh[i].voxel;
+            std::vector<std::vector<VoxelSample>> byCell = samplesByNetwork(partition, cells, fresh, [&](size_t i) {
+                return positionInCell(partition, result.partition, adaptive, grid, fresh[i].position, cells[i]);
+            });
+            gs.samplingSeconds = since(ts);
+            auto tt = std::chrono::steady_clock::now();
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, states.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    const std::vector<VoxelSample>& mine = byCell[states[k].result.voxel];
+                    if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, states[k]);
+                }
+            });
+            for (size_t k = 0; k < states.size(); ++k) {
+                field.set(states[k].result.voxel, states[k].result.params, states[k].result.scale);
+                gs.heldOutRelMse += states[k].result.heldOutRelMse / double(states.size());
+            }
+            gs.trainingSeconds = since(tt);
+            result.timings.sampling += gs.samplingSeconds;
+            result.timings.training += gs.trainingSeconds;
+            result.generations.push_back(gs);
+            if (progress.generation) {
+                for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
+                assemble();
+                progress.generation(g, result);
+            }
+        }
+        for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
     }
-    if (adaptive) {
-        a.header.flags |= format::kFlagTree;
-        a.tree = result.partition.tree;
-        a.leafCount = result.partition.leafCount;
-    }
-    a.topology = topology;
-    for (const VoxelTrainResult& v : result.voxels) {
-        a.voxels.push_back({v.voxel, v.scale});
-        a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
-    }
-    if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
+
+    assemble();
+    const format::Asset& a = result.asset;
     if (adaptive) {
         const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size());
         if (a.metadata.size() > reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
@@ -245,6 +358,16 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"weight_decays", t.weightDecays},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
+    if (settings.training == TrainingMethod::Integral) {  // only then, so that Monte Carlo assets keep their bytes
+        const IntegralSettings& in = settings.integral;
+        j["bake"]["training"] = {{"method", trainingMethodName(settings.training)},
+                                 {"generations", in.generations},
+                                 {"points_per_generation", in.points > 0 ? in.points : s.points},
+                                 {"paths_per_point", in.paths},
+                                 {"bounces", in.bounces},
+                                 {"epochs_per_generation", in.epochs},
+                                 {"learning_rate", {in.learningRate, in.finalLearningRate}}};
+    }
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},
                                   {"budget_bytes", settings.partition.budgetBytes},

@@ -15,6 +15,29 @@
 
 namespace nrad {
 
+// How the networks' targets are made (paper Sec. 3 and 5).
+enum class TrainingMethod {
+    MonteCarlo,  // each sample's target from `paths` full paths (SampleSettings)
+    Integral,  // within the integral equation: one bounce, the networks themselves standing in for the rest
+};
+const char* trainingMethodName(TrainingMethod method);
+bool parseTrainingMethod(const std::string& name, TrainingMethod& method);
+
+// Training within the integral equation: a Monte Carlo start (the usual bake, SampleSettings' points and
+// paths, few of them, while the networks know nothing), then `generations` rounds, each of fresh points continuing the
+// quasi-Monte Carlo sequence, whose targets are `bounces` bounce(s) of next event estimation and BSDF
+// sampling with the networks as they stood after the previous round for the rest of the path
+// (NetworkField), each sample used for `epochs` passes and then dropped; the learning rate falls
+// geometrically from `learningRate` to `finalLearningRate` over the rounds.
+struct IntegralSettings {
+    uint32_t generations = 8;
+    uint32_t points = 0;  // per round; 0: SampleSettings::points
+    uint32_t paths = 1;  // target estimates per point in a round
+    int bounces = 1;
+    int epochs = 2;
+    float learningRate = 0.002f, finalLearningRate = 0.0002f;
+};
+
 struct BakeSettings {
     glm::uvec3 grid{3, 3, 3};
     // Half-width, in voxels, of the band around interior voxel faces where neighbouring networks are blended
@@ -25,6 +48,8 @@ struct BakeSettings {
     PartitionSettings partition;
     SampleSettings samples;
     TrainSettings train;
+    TrainingMethod training = TrainingMethod::MonteCarlo;
+    IntegralSettings integral;
     format::WeightEncoding encoding = format::WeightEncoding::Float16;
     NeeSettings nee;  // light selection of the training paths (learned: trained on warm-up paths first)
     bool metadata = true;
@@ -37,6 +62,16 @@ struct BakeTimings {
     double setup = 0.0, sampling = 0.0, partition = 0.0, training = 0.0;  // partition: refining the kd-tree (--budget)
 };
 
+// One round of training within the integral equation (round 0: the Monte Carlo start).
+struct GenerationStats {
+    uint32_t generation = 0;
+    size_t samples = 0;
+    uint64_t rays = 0;
+    double samplingSeconds = 0.0, trainingSeconds = 0.0;
+    double heldOutRelMse = 0.0;  // mean over networks, against this round's targets
+    float learningRate = 0.0f;
+};
+
 struct BakeResult {
     format::Asset asset;
     std::vector<VoxelTrainResult> voxels;  // occupied voxels (tree: leaves with surface), in index order
@@ -45,11 +80,14 @@ struct BakeResult {
     size_t sampleCount = 0;
     double surfaceArea = 0.0;
     BakeTimings timings;
+    std::vector<GenerationStats> generations;  // integral training: every round, the start included
 };
 
 struct BakeProgress {
     std::function<void(double)> sampling;
     std::function<void(double)> training;
+    // Integral training: called after every round (0: the Monte Carlo start) with the asset as it stands.
+    std::function<void(uint32_t generation, const BakeResult& soFar)> generation;
 };
 
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {});

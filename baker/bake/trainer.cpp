@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <numeric>
 
 #include "baker/render/sampler.h"
@@ -84,6 +85,111 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
 
 namespace {
 
+// A network's samples as the optimizer sees them: encoded inputs, targets (demodulated if asked), the
+// reflectance they are multiplied back by, per-channel loss weights (demodulation's and the blend weight),
+// and the held-out split, a hash of (seed, voxel, sample, salt), at least one on each side.
+struct PreparedSamples {
+    const std::vector<VoxelSample>* entries = nullptr;
+    std::vector<float> inputs;
+    std::vector<glm::vec3> targets, modulation, weights;
+    std::vector<size_t> train, heldOut;
+    const std::vector<size_t>& evalSet() const { return heldOut.empty() ? train : heldOut; }  // one sample: judged on itself
+    const TrainingSample& sample(size_t i) const { return *(*entries)[i].sample; }
+    float blend(size_t i) const { return (*entries)[i].weight; }
+};
+
+PreparedSamples prepareSamples(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings, uint32_t salt) {
+    PreparedSamples d;
+    d.entries = &entries;
+    const size_t n = entries.size();
+    const int nIn = settings.shape.inputs;
+    d.inputs.resize(n * size_t(nIn));
+    d.targets.resize(n);
+    d.modulation.assign(n, glm::vec3(1.0f));
+    d.weights.assign(n, glm::vec3(1.0f));
+    uint32_t splitSeed = hashCombine(hashCombine(settings.seed, 0x73706c74u), voxel);
+    if (salt != 0) splitSeed = hashCombine(splitSeed, salt);
+    for (size_t i = 0; i < n; ++i) {
+        const TrainingSample& t = *entries[i].sample;
+        const float local[3] = {entries[i].local.x, entries[i].local.y, entries[i].local.z};
+        const float normal[3] = {t.normal.x, t.normal.y, t.normal.z}, direction[3] = {t.wo.x, t.wo.y, t.wo.z};
+        eval::encodeInputs(local, normal, direction, &d.inputs[i * size_t(nIn)]);
+        d.targets[i] = t.radiance;
+        if (settings.demodulate) {
+            // The network learns radiance / reflectance (floored); a channel whose reflectance is below the
+            // floor weighs (R / floor)^2 in the loss: black has nothing to learn and is left free.
+            const glm::vec3 r = t.reflectance, div = demodulationDivisor(t);
+            d.targets[i] /= div;
+            d.modulation[i] = r;
+            d.weights[i] = (r / div) * (r / div);
+        }
+        d.weights[i] *= entries[i].weight;
+        bool hold = float(hashCombine(splitSeed, uint32_t(i)) >> 8) * 0x1p-24f < settings.holdoutFraction;
+        (hold ? d.heldOut : d.train).push_back(i);
+    }
+    if (d.train.empty() && !d.heldOut.empty()) {
+        d.train.push_back(d.heldOut.back());
+        d.heldOut.pop_back();
+    }
+    if (d.heldOut.empty() && d.train.size() >= 2) {
+        d.heldOut.push_back(d.train.back());
+        d.train.pop_back();
+    }
+    return d;
+}
+
+// The network's output for normalized target t (the loss's space: the output transform's inverse).
+float normalizedTarget(const TrainSettings& settings, float invScale, float target) {
+    float t = target * invScale;
+    return settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
+}
+
+// One pass over `perm` in mini-batches: the loss's gradient, averaged over the batch, plus an L2 penalty of
+// weightDecay / (training samples) on every parameter but the output biases, one Adam step per batch.
+void trainEpoch(Mlp& mlp, Adam& adam, MlpWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& perm,
+                const TrainSettings& settings, float invScale, float lr, float weightDecay) {
+    const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
+    float y[8], dy[8];
+    std::vector<float> grad(mlp.parameters().size());
+    for (size_t b = 0; b < perm.size(); b += size_t(settings.batchSize)) {
+        size_t e = std::min(perm.size(), b + size_t(settings.batchSize));
+        std::fill(grad.begin(), grad.end(), 0.0f);
+        for (size_t k = b; k < e; ++k) {
+            size_t i = perm[k];
+            mlp.forward(&d.inputs[i * size_t(nIn)], y, ws);
+            float weight = 1.0f;
+            if (settings.loss == LossKind::RelativeL2) {
+                glm::vec3 pred(std::max(0.0f, y[0]), std::max(0.0f, y[1]), std::max(0.0f, y[2]));
+                float l = luminance(pred);
+                weight = 1.0f / (l * l + 0.01f);
+            }
+            for (int c = 0; c < nOut; ++c)
+                dy[c] = 2.0f * weight * d.weights[i][c] * (y[c] - normalizedTarget(settings, invScale, d.targets[i][c]));
+            mlp.backward(dy, ws, grad.data());
+        }
+        float inv = 1.0f / float(e - b);
+        for (float& g : grad) g *= inv;
+        const float wd = weightDecay / float(std::max<size_t>(1, d.train.size()));
+        if (wd > 0.0f)
+            for (size_t q = 0; q + size_t(nOut) < grad.size(); ++q) grad[q] += wd * mlp.parameters()[q];
+        adam.step(mlp.parameters(), grad, lr);
+    }
+}
+
+// Weighted relMSE over `set` as shaded: the prediction multiplied back by the reflectance, against the
+// scattered radiance, weighted as the runtime weighs this network there.
+double shadedError(const Mlp& mlp, MlpWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& set,
+                   const TrainSettings& settings, format::OutputTransform transform, float scale) {
+    double e = 0.0, w = 0.0;
+    float y[8];
+    for (size_t i : set) {
+        mlp.forward(&d.inputs[i * size_t(settings.shape.inputs)], y, ws);
+        e += double(d.blend(i)) * relativeSquaredError(d.modulation[i] * decodeOutput(transform, scale, y), d.sample(i).radiance);
+        w += double(d.blend(i));
+    }
+    return w > 0.0 ? e / w : 0.0;
+}
+
 // One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
 // parameter but the output biases (added to each step's mean gradient).
 VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings,
@@ -92,75 +198,27 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     VoxelTrainResult result;
     result.voxel = voxel;
     result.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-    const size_t n = entries.size();
-    std::vector<const TrainingSample*> samples(n);
-    for (size_t i = 0; i < n; ++i) samples[i] = entries[i].sample;
     const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
-
-    // Inputs and targets; the held-out split is a hash of (seed, voxel, sample), at least one on each side.
-    std::vector<float> inputs(n * size_t(nIn));
-    std::vector<glm::vec3> targets(n), modulation(n, glm::vec3(1.0f)), weights(n, glm::vec3(1.0f));
-    std::vector<size_t> train, heldOut;
-    uint32_t splitSeed = hashCombine(hashCombine(settings.seed, 0x73706c74u), voxel);
-    for (size_t i = 0; i < n; ++i) {
-        const TrainingSample& t = *samples[i];
-        const float local[3] = {entries[i].local.x, entries[i].local.y, entries[i].local.z};
-        const float normal[3] = {t.normal.x, t.normal.y, t.normal.z}, direction[3] = {t.wo.x, t.wo.y, t.wo.z};
-        eval::encodeInputs(local, normal, direction, &inputs[i * size_t(nIn)]);
-        targets[i] = t.radiance;
-        if (settings.demodulate) {
-            // The network learns radiance / reflectance (floored); a channel whose reflectance is below the
-            // floor weighs (R / floor)^2 in the loss: black has nothing to learn and is left free.
-            const glm::vec3 r = samples[i]->reflectance, d = demodulationDivisor(*samples[i]);
-            targets[i] /= d;
-            modulation[i] = r;
-            weights[i] = (r / d) * (r / d);
-        }
-        weights[i] *= entries[i].weight;
-        bool hold = float(hashCombine(splitSeed, uint32_t(i)) >> 8) * 0x1p-24f < settings.holdoutFraction;
-        (hold ? heldOut : train).push_back(i);
-    }
-    if (train.empty() && !heldOut.empty()) {
-        train.push_back(heldOut.back());
-        heldOut.pop_back();
-    }
-    if (heldOut.empty() && train.size() >= 2) {
-        heldOut.push_back(train.back());
-        train.pop_back();
-    }
+    const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
+    const std::vector<size_t>& train = d.train;
     result.trainCount = train.size();
-    result.heldOutCount = heldOut.size();
-    const std::vector<size_t>& evalSet = heldOut.empty() ? train : heldOut;  // one sample: judged on itself
+    result.heldOutCount = d.heldOut.size();
+    const std::vector<size_t>& evalSet = d.evalSet();
 
     // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
     double meanLum = 0.0, weightSum = 0.0;
     for (size_t i : train) {
-        meanLum += double(entries[i].weight) * std::max(0.0f, luminance(targets[i]));
-        weightSum += double(entries[i].weight);
+        meanLum += double(d.blend(i)) * std::max(0.0f, luminance(d.targets[i]));
+        weightSum += double(d.blend(i));
     }
     meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;
     result.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
     const float invScale = 1.0f / result.scale;
-    auto normalizedTarget = [&](size_t i, int c) {
-        float t = targets[i][c] * invScale;
-        return settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
-    };
 
     Mlp mlp(settings.shape);
     MlpWorkspace ws;
-    std::vector<float> y(static_cast<size_t>(nOut)), dy(static_cast<size_t>(nOut)), grad(mlp.parameters().size());
-    auto evaluate = [&](const std::vector<size_t>& set) {
-        double e = 0.0, w = 0.0;
-        for (size_t i : set) {
-            mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
-            // Judged as shaded: the prediction multiplied back by the reflectance, against the scattered
-            // radiance, weighted as the runtime weighs this network there.
-            e += double(entries[i].weight) *
-                 relativeSquaredError(modulation[i] * decodeOutput(result.transform, result.scale, y.data()), samples[i]->radiance);
-            w += double(entries[i].weight);
-        }
-        return w > 0.0 ? e / w : 0.0;
-    };
+    std::vector<float> y(static_cast<size_t>(nOut));
+    auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, ws, d, set, settings, result.transform, result.scale); };
 
     double bestOverall = std::numeric_limits<double>::infinity();
     std::vector<float> bestOverallParams;
@@ -179,29 +237,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         for (; epoch < settings.epochs; ++epoch) {
             for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
             float lr = settings.learningRate * std::pow(0.1f, float(epoch) / float(std::max(1, settings.epochs)));
-            for (size_t b = 0; b < perm.size(); b += size_t(settings.batchSize)) {
-                size_t e = std::min(perm.size(), b + size_t(settings.batchSize));
-                std::fill(grad.begin(), grad.end(), 0.0f);
-                for (size_t k = b; k < e; ++k) {
-                    size_t i = perm[k];
-                    mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
-                    float weight = 1.0f;
-                    if (settings.loss == LossKind::RelativeL2) {
-                        glm::vec3 pred(std::max(0.0f, y[0]), std::max(0.0f, y[1]), std::max(0.0f, y[2]));
-                        float l = luminance(pred);
-                        weight = 1.0f / (l * l + 0.01f);
-                    }
-                    for (int c = 0; c < nOut; ++c)
-                        dy[size_t(c)] = 2.0f * weight * weights[i][c] * (y[size_t(c)] - normalizedTarget(i, c));
-                    mlp.backward(dy.data(), ws, grad.data());
-                }
-                float inv = 1.0f / float(e - b);
-                for (float& g : grad) g *= inv;
-                const float wd = weightDecay / float(std::max<size_t>(1, train.size()));
-                if (wd > 0.0f)
-                    for (size_t q = 0; q + size_t(nOut) < grad.size(); ++q) grad[q] += wd * mlp.parameters()[q];
-                adam.step(mlp.parameters(), grad, lr);
-            }
+            trainEpoch(mlp, adam, ws, d, perm, settings, invScale, lr, weightDecay);
             if (!mlp.allFinite()) {
                 diverged = true;
                 break;
@@ -232,10 +268,12 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
             std::vector<bool> alive(size_t(width), false);
             glm::dvec3 mean(0.0), mean2(0.0), tmean(0.0), tmean2(0.0);
             for (size_t i : train) {
-                mlp.forward(&inputs[i * size_t(nIn)], y.data(), ws);
+                mlp.forward(&d.inputs[i * size_t(nIn)], y.data(), ws);
                 for (int u = 0; u < width; ++u)
                     if (ws.activations[1][size_t(u)] > 0.0f) alive[size_t(u)] = true;
-                glm::dvec3 p(y[0], y[1], y[2]), t(normalizedTarget(i, 0), normalizedTarget(i, 1), normalizedTarget(i, 2));
+                glm::dvec3 p(y[0], y[1], y[2]);
+                glm::dvec3 t(normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
+                             normalizedTarget(settings, invScale, d.targets[i][2]));
                 mean += p;
                 mean2 += p * p;
                 tmean += t;
@@ -265,13 +303,10 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         result.events.push_back("fallback: constant network with the voxel's mean radiance");
         std::fill(mlp.parameters().begin(), mlp.parameters().end(), 0.0f);
         glm::dvec3 mean(0.0);
-        for (size_t i : train) mean += double(entries[i].weight) * glm::dvec3(targets[i]);
+        for (size_t i : train) mean += double(d.blend(i)) * glm::dvec3(d.targets[i]);
         if (weightSum > 0.0) mean /= weightSum;
         size_t outBias = mlp.parameters().size() - size_t(nOut);
-        for (int c = 0; c < nOut; ++c) {
-            float t = float(mean[c]) * invScale;
-            mlp.parameters()[outBias + size_t(c)] = settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
-        }
+        for (int c = 0; c < nOut; ++c) mlp.parameters()[outBias + size_t(c)] = normalizedTarget(settings, invScale, float(mean[c]));
         bestOverallParams = mlp.parameters();
     }
     mlp.parameters() = bestOverallParams;
@@ -285,6 +320,40 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
 }
 
 }  // namespace
+
+VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const TrainSettings& settings, uint32_t generation, int epochs,
+                               float learningRate, NetworkState& state) {
+    auto start = std::chrono::steady_clock::now();
+    VoxelTrainResult& result = state.result;
+    const PreparedSamples d = prepareSamples(result.voxel, entries, settings, generation);
+    const float invScale = 1.0f / result.scale;
+    Mlp mlp(settings.shape);
+    mlp.parameters() = result.params;
+    MlpWorkspace ws;
+    if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
+    SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
+    std::vector<size_t> perm = d.train;
+    for (int epoch = 0; epoch < epochs; ++epoch) {
+        for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
+        trainEpoch(mlp, *state.adam, ws, d, perm, settings, invScale, learningRate, result.weightDecay);
+    }
+    // Kept only if finite; a network that diverged keeps what it had (and says so).
+    if (mlp.allFinite()) {
+        result.params = mlp.parameters();
+    } else {
+        result.events.push_back("generation " + std::to_string(generation) + ": non-finite weights, update dropped");
+        state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
+        mlp.parameters() = result.params;
+    }
+    result.trainCount += d.train.size();
+    result.heldOutCount = d.heldOut.size();
+    result.heldOutRelMse = shadedError(mlp, ws, d, d.evalSet(), settings, result.transform, result.scale);
+    result.trainRelMse = shadedError(mlp, ws, d, d.train, settings, result.transform, result.scale);
+    result.epochs += epochs;
+    result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.curve.push_back({int(generation), result.seconds, result.heldOutRelMse});
+    return result;
+}
 
 VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
     VoxelTrainResult best;

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -97,6 +98,19 @@ double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& refere
 // Fits the network of `voxel` to its samples, each weighing VoxelSample::weight in the loss, the scale
 // and the reported (weighted) errors.
 VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& samples, const TrainSettings& settings);
+// A network between the generations of training within the integral equation (baker.h): what it has become
+// (parameters, fixed output scale, the errors of its latest generation) and its optimizer's state.
+struct NetworkState {
+    VoxelTrainResult result;
+    std::unique_ptr<Adam> adam;  // created at the first generation
+};
+
+// Trains state's network further, `epochs` passes over `samples` (a new generation's, whose targets came from
+// the networks as they were) at a constant learning rate, from where it stood; the held-out split is salted
+// with the generation. The gradient stops at the targets (semi-gradient). Returns state.result, updated:
+// its errors are this generation's, against its (noisy) targets.
+VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& samples, const TrainSettings& settings, uint32_t generation, int epochs,
+                               float learningRate, NetworkState& state);
 // The same for samples inside the voxel, weight 1 each.
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
                             const TrainSettings& settings);

@@ -40,7 +40,7 @@ struct PointRequest {
 std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
                                                     SampleStats& stats, const std::function<void(double)>& progress,
-                                                    LightSelector* trainee) {
+                                                    LightSelector* trainee, const TargetEstimator& estimator) {
     stats = SampleStats{};
     stats.perVoxel.assign(grid.voxelCount(), 0);
     std::vector<TrainingSample> samples;
@@ -55,7 +55,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     for (const SurfacePiece& p : pieces.pieces()) cdf.push_back(acc += p.area);
     uint32_t pointStream = hashCombine(settings.seed, kPointStream);
     std::vector<uint32_t> count(grid.voxelCount(), 0);
-    for (uint32_t i = 0; i < settings.points; ++i) {
+    for (uint32_t k = 0; k < settings.points; ++k) {
+        const uint32_t i = settings.firstPoint + k;
         Sampler s(pointStream, i);
         float uPiece = s.get1D();
         PointRequest r{uint32_t(pickByCdf(cdf, uPiece)), s.get2D(), s.get2D(), hashCombine(hashCombine(settings.seed, kPathStream), i)};
@@ -70,11 +71,13 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         double vacc = 0.0;
         for (uint32_t p : own) vcdf.push_back(vacc += pieces.pieces()[p].area);
         uint32_t stream = hashCombine(hashCombine(settings.seed, kFloorStream), v);
+        if (settings.generation != 0) stream = hashCombine(stream, settings.generation);
         for (uint32_t j = count[v]; j < settings.minSamplesPerVoxel; ++j) {
             Sampler s(stream, j);
             float uPiece = s.get1D();
-            PointRequest r{own[pickByCdf(vcdf, uPiece)], s.get2D(), s.get2D(),
-                           hashCombine(hashCombine(hashCombine(settings.seed, kPathStream), 0x80000000u | v), j)};
+            uint32_t pathStream = hashCombine(hashCombine(hashCombine(settings.seed, kPathStream), 0x80000000u | v), j);
+            if (settings.generation != 0) pathStream = hashCombine(pathStream, settings.generation);
+            PointRequest r{own[pickByCdf(vcdf, uPiece)], s.get2D(), s.get2D(), pathStream};
             requests.push_back(r);
             ++stats.floorPoints;
         }
@@ -145,7 +148,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
             uint32_t finite = 0;
             for (uint32_t j = 0; j < settings.paths; ++j) {
                 Sampler ps(r.pathStream, j);
-                glm::vec3 L = tracer.outgoingRadiance(si, ps, settings.maxDepth, counters);
+                glm::vec3 L = estimator.tail ? tracer.scatteredRadiance(si, ps, estimator.bounces, *estimator.tail, counters)
+                                             : tracer.outgoingRadiance(si, ps, settings.maxDepth, counters);
                 if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) {
                     sum += glm::dvec3(L);
                     ++finite;
@@ -161,7 +165,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 // The target is the radiance the point scatters, L - Le: its own emission is exact and is
                 // added back by whoever shades (nrad/eval.h, shade()), so no network has to draw an
                 // emitter's edge. Rounding can leave -1 ulp: clamped.
-                t.radiance = glm::max(glm::vec3(sum / double(finite)) - si.emission, glm::vec3(0.0f));
+                const glm::vec3 own = estimator.tail ? glm::vec3(0.0f) : si.emission;  // the tail's estimates have none
+                t.radiance = glm::max(glm::vec3(sum / double(finite)) - own, glm::vec3(0.0f));
                 float refl[3];
                 eval::reflectance(shadingSurface(si), glm::dot(si.ns, wo), refl);
                 t.reflectance = glm::vec3(refl[0], refl[1], refl[2]);

@@ -39,6 +39,17 @@ struct SampleSettings {
     // before the samples, to train the selection network, which then stays fixed (so samples can be traced
     // in any order). Their estimates are not used.
     uint64_t neeWarmupPaths = 262144;
+    // Generations of training within the integral equation (baker.h): this set's points continue the point
+    // sequence at index `firstPoint`, and its floor points and paths are salted with `generation` (0: none).
+    uint32_t firstPoint = 0;
+    uint32_t generation = 0;
+};
+
+// How a sample's target is estimated: `paths` full paths (Monte Carlo), or, with a tail, `paths` estimates of
+// `bounces` bounces each with the tail standing in for the rest (PathTracer::scatteredRadiance).
+struct TargetEstimator {
+    const ScatteredRadiance* tail = nullptr;
+    int bounces = 1;
 };
 
 struct SampleStats {
@@ -57,6 +68,6 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
                                                     SampleStats& stats,
                                                     const std::function<void(double)>& progress = {},
-                                                    LightSelector* trainee = nullptr);
+                                                    LightSelector* trainee = nullptr, const TargetEstimator& estimator = {});
 
 }  // namespace nrad

@@ -30,6 +30,9 @@ const BakeSettings& defaults() {
     return s;
 }
 
+// --training integral without --paths: the Monte Carlo start's paths per point.
+constexpr uint32_t kIntegralStartPaths = 4;
+
 std::string joinFloats(const std::vector<float>& v) {
     std::string s;
     for (float x : v) {
@@ -65,6 +68,9 @@ struct BakeOptions {
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
     bool quiet = false, noMetadata = false, noDemodulate = false;
     LightingOptions lighting;
+    std::string training = trainingMethodName(defaults().training);
+    IntegralSettings integral = defaults().integral;
+    std::string saveGenerations;  // path prefix: integral training writes every round's asset there
 };
 
 bool parseGrid(const std::string& s, glm::uvec3& out) {
@@ -114,7 +120,7 @@ int usage(const std::string& what) {
 }
 
 int runBake(BakeOptions o, CLI::App* cmd) {
-    bool configEnvironment = false, configLighting = false, configPoints = false;
+    bool configEnvironment = false, configLighting = false, configPoints = false, configPaths = false;
     // A config file supplies defaults; flags given on the command line win.
     if (!o.config.empty()) {
         nlohmann::json cfg;
@@ -130,7 +136,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                                           "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
                                           "blend_band", "weight_decay", "environment", "environment_intensity",
                                           "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct",
-                                          "budget", "levels", "min_leaf_samples"};
+                                          "budget", "levels", "min_leaf_samples", "training", "generations",
+                                          "generation_points", "generation_paths", "generation_epochs", "bounces"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
@@ -138,6 +145,12 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             if (cfg.contains("budget") && cmd->count("--budget") == 0)
                 o.budget = cfg["budget"].is_number_integer() ? std::to_string(cfg["budget"].get<uint64_t>()) : cfg["budget"].get<std::string>();
             take("levels", "--levels", o.levels);
+            take("training", "--training", o.training);
+            take("generations", "--generations", o.integral.generations);
+            take("generation_points", "--generation-points", o.integral.points);
+            take("generation_paths", "--generation-paths", o.integral.paths);
+            take("generation_epochs", "--generation-epochs", o.integral.epochs);
+            take("bounces", "--bounces", o.integral.bounces);
             take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
             if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
                 o.grid = std::to_string(cfg["grid"].get<int>());
@@ -145,6 +158,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                 take("grid", "--grid", o.grid);
             take("points", "--points", o.points);
             take("paths", "--paths", o.paths);
+            configPaths = cfg.contains("paths");
             take("max_depth", "--max-depth", o.maxDepth);
             if (cfg.contains("hidden") && cfg["hidden"].is_number_integer() && cmd->count("--hidden") == 0)
                 o.hidden = std::to_string(cfg["hidden"].get<int>());
@@ -229,6 +243,13 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
         o.points = uint32_t(std::clamp<uint64_t>(networks * 1500, o.points, 4000000));
     }
+    if (!parseTrainingMethod(o.training, s.training))
+        return usage("--training " + o.training + ": expected monte-carlo or integral");
+    if (o.integral.paths < 1 || o.integral.epochs < 1 || o.integral.bounces < 1 || o.integral.bounces > 8)
+        return usage("--generation-paths and --generation-epochs must be positive, --bounces 1 to 8");
+    s.integral = o.integral;
+    // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
+    if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -256,7 +277,15 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
     BakeResult r;
     try {
-        r = bakeScene(scene, s, {[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }});
+        BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {}};
+        if (!o.saveGenerations.empty())
+            progress.generation = [&](uint32_t g, const BakeResult& soFar) {
+                writeBytesAtomically(o.saveGenerations + "-g" + std::to_string(g) + ".nrad", format::encode(soFar.asset));
+            };
+        r = bakeScene(scene, s, progress);
+    } catch (const IoError& e) {  // --save-generations
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitIo;
     } catch (const std::runtime_error& e) {  // a budget below the smallest asset
         std::fprintf(stderr, "nrad bake: %s\n", e.what());
         return kExitUsage;
@@ -296,6 +325,13 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                 (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
                 loadSeconds, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, writeSeconds);
 
+    if (!r.generations.empty()) {
+        const GenerationStats& last = r.generations.back();
+        std::printf("training within the integral equation: a Monte Carlo start (%zu samples, %.2f s) and %zu rounds of %zu "
+                    "samples; held-out relMSE against the targets %.4g after the start, %.4g after the last round\n",
+                    r.generations.front().samples, r.generations.front().samplingSeconds + r.generations.front().trainingSeconds,
+                    r.generations.size() - 1, last.samples, r.generations.front().heldOutRelMse, last.heldOutRelMse);
+    }
     const AdaptivePartition& ap = r.partition;
     if (s.partition.budgetBytes > 0) {
         uint32_t deepest = 0;
@@ -328,6 +364,16 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                               {"residual", ap.residual},
                               {"cells", leaves}};
         }
+        nlohmann::json rounds = nlohmann::json::array();
+        double elapsed = loadSeconds + r.timings.setup + r.timings.partition;
+        for (const GenerationStats& g : r.generations) {
+            elapsed += g.samplingSeconds + g.trainingSeconds;
+            rounds.push_back({{"generation", g.generation}, {"samples", g.samples}, {"rays", g.rays},
+                              {"sampling_seconds", g.samplingSeconds}, {"training_seconds", g.trainingSeconds},
+                              {"elapsed_seconds", elapsed}, {"learning_rate", g.learningRate},
+                              {"held_out_relmse_against_targets", g.heldOutRelMse}});
+        }
+        j["training"] = {{"method", trainingMethodName(s.training)}, {"generations", rounds}};
         j["scene"] = o.scene;
         j["asset"] = o.output;
         j["asset_bytes"] = bytes.size();
@@ -395,6 +441,17 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--loss", o->loss, "l2, relative-l2 (default) or log-l2");
     cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
+    cmd->add_option("--training", o->training,
+                    "monte-carlo (default: each target from --paths full paths) or integral (within the integral equation: "
+                    "a Monte Carlo start of --paths paths per point, default 4, then rounds of one-bounce targets with the "
+                    "networks for the rest of the path; docs/training.md)");
+    cmd->add_option("--generations", o->integral.generations, "Integral training: rounds after the Monte Carlo start (default 8)");
+    cmd->add_option("--generation-points", o->integral.points, "Integral training: fresh points per round (default: --points)");
+    cmd->add_option("--generation-paths", o->integral.paths, "Integral training: target estimates per point in a round (default 1)");
+    cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 2)");
+    cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 1)");
+    cmd->add_option("--save-generations", o->saveGenerations,
+                    "Integral training: also write the asset after every round as PREFIX-gN.nrad (N = 0 is the Monte Carlo start)");
     cmd->add_option("--weight-decay", o->weightDecay,
                     "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training "
                     "samples; 0 = unregularised (default " + joinFloats(defaults().train.weightDecays) + ")");

@@ -106,8 +106,14 @@ glm::vec3 PathTracer::outgoingRadiance(const SurfaceInteraction& si, Sampler& sa
     return trace(si, sampler, maxDepth, counters, nullptr, nee);
 }
 
+glm::vec3 PathTracer::scatteredRadiance(const SurfaceInteraction& si, Sampler& sampler, int bounces,
+                                        const ScatteredRadiance& tail, RayCounters& counters) const {
+    return trace(si, sampler, 0, counters, nullptr, nullptr, std::max(1, bounces), &tail);
+}
+
 glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
-                            std::vector<RecordedRay>* record, NeeTrace* nee) const {
+                            std::vector<RecordedRay>* record, NeeTrace* nee, int cutDepth,
+                            const ScatteredRadiance* tail) const {
     glm::vec3 L(0.0f), beta(1.0f);
     float prevBsdfPdf = 0.0f;
     glm::vec3 prevP(0.0f);
@@ -119,7 +125,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
     for (int depth = 0;; ++depth) {  // depth = segments traced before the one that reached si
         if (!isBlack(si.emission)) {
             if (depth == 0) {
-                L += beta * si.emission;
+                if (cutDepth == 0) L += beta * si.emission;  // scatteredRadiance leaves out si's own
             } else {
                 float lightPdf;
                 if (selector_) {
@@ -130,6 +136,13 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
                 }
                 L += beta * si.emission * powerHeuristic(prevBsdfPdf, lightPdf);
             }
+        }
+        if (cutDepth > 0 && depth == cutDepth) {
+            // What this vertex scatters towards the previous one, from the tail (emission was counted above).
+            glm::vec3 Ls = (*tail)(si);
+            if (excludeEngineDrawn_) Ls += engineDrawnDirect(scene_, accel_, si);
+            if (isFinite(Ls)) L += beta * Ls;
+            break;
         }
         if (maxDepth > 0 && depth + 1 >= maxDepth) break;
 
@@ -189,7 +202,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         prevBsdfPdf = bs.pdf;
         prevP = si.p;
         std::swap(probs, prevProbs);
-        if (depth + 1 >= kRouletteStart) {
+        if (depth + 1 >= kRouletteStart && cutDepth == 0) {
             float q = std::min(1.0f, maxComponent(beta));
             if (uRoulette >= q) break;
             beta /= q;

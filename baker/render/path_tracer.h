@@ -61,6 +61,10 @@ struct NeeTrace {
     int firstLight = -1;
 };
 
+// What stands in for the rest of a path where it is cut (training within the integral equation, paper Sec. 3):
+// the radiance the surface at an interaction scatters towards its wo, without its own emission.
+using ScatteredRadiance = std::function<glm::vec3(const SurfaceInteraction&)>;
+
 // The shadow ray that tests whether light sample `ls` reaches the surface point `si`: origin, unit direction
 // and the interval [tnear, tfar) in which an occluder blocks it (none if tfar <= tnear). Robust at grazing
 // angles and at any scene scale or distance from the origin (issue 12).
@@ -93,6 +97,13 @@ public:
     glm::vec3 outgoingRadiance(const SurfaceInteraction& si, Sampler& sampler, int maxDepth, RayCounters& counters,
                                NeeTrace* nee = nullptr) const;
 
+    // One estimate of the scattered radiance L(x, wo) - Le(x, wo) at si from `bounces` (>= 1) BSDF bounces with
+    // next event estimation and MIS, the path cut at the vertex the last bounce reaches: its emission (MIS
+    // weighted as usual) plus `tail` there (plus, for training targets with engine-drawn lights excluded, those
+    // lights' direct light there, which the tail does not hold). No Russian roulette before the cut.
+    glm::vec3 scatteredRadiance(const SurfaceInteraction& si, Sampler& sampler, int bounces, const ScatteredRadiance& tail,
+                                RayCounters& counters) const;
+
     // Renders an image; progress(fraction) is called from worker threads as tiles finish.
     Image render(const Camera& camera, const RenderSettings& settings, RenderStats* stats = nullptr,
                  const std::function<void(double)>& progress = {}) const;
@@ -102,8 +113,10 @@ public:
     std::vector<RecordedRay> recordRays(const Camera& camera, const RenderSettings& settings) const;
 
 private:
+    // cutDepth > 0: the path ends at the vertex reached by that many bounces with `tail` (scatteredRadiance).
     glm::vec3 trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
-                    std::vector<RecordedRay>* record, NeeTrace* nee) const;
+                    std::vector<RecordedRay>* record, NeeTrace* nee, int cutDepth = 0,
+                    const ScatteredRadiance* tail = nullptr) const;
 
     const Scene& scene_;
     const Accel& accel_;
