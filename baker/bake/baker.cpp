@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/bake/network_field.h"
+#include "baker/nn/schedule.h"
 #include "baker/render/accel.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
@@ -283,7 +284,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
             GenerationStats gs;
             gs.generation = g;
             const float f = in.generations > 1 ? float(g - 1) / float(in.generations - 1) : 1.0f;
-            gs.learningRate = in.learningRate * std::pow(in.finalLearningRate / in.learningRate, f);
+            gs.learningRate = exponentialDecay(in.learningRate, in.finalLearningRate / in.learningRate, f);
             round.generation = g;
             auto ts = std::chrono::steady_clock::now();
             SampleStats stats;
@@ -304,7 +305,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
             tbb::parallel_for(tbb::blocked_range<size_t>(0, states.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t k = r.begin(); k != r.end(); ++k) {
                     const std::vector<VoxelSample>& mine = byCell[states[k].result.voxel];
-                    if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, states[k]);
+                    if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, in.averageDecay, states[k]);
                 }
             });
             for (size_t k = 0; k < states.size(); ++k) {
@@ -366,7 +367,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                                  {"paths_per_point", in.paths},
                                  {"bounces", in.bounces},
                                  {"epochs_per_generation", in.epochs},
-                                 {"learning_rate", {in.learningRate, in.finalLearningRate}}};
+                                 {"learning_rate", {in.learningRate, in.finalLearningRate}},
+                                 {"average_decay", in.averageDecay}};
     }
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},

@@ -36,6 +36,7 @@ struct IntegralSettings {
     int bounces = 1;
     int epochs = 2;
     float learningRate = 0.002f, finalLearningRate = 0.0002f;
+    float averageDecay = 0.99f;  // per step, of the parameters' moving average (0: none)
 };
 
 struct BakeSettings {

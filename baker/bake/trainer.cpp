@@ -7,6 +7,7 @@
 #include <memory>
 #include <numeric>
 
+#include "baker/nn/schedule.h"
 #include "baker/render/sampler.h"
 
 namespace nrad {
@@ -14,24 +15,6 @@ namespace nrad {
 namespace {
 float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 }  // namespace
-
-const char* lossName(LossKind loss) {
-    switch (loss) {
-        case LossKind::L2: return "l2";
-        case LossKind::RelativeL2: return "relative-l2";
-        case LossKind::Log: return "log-l2";
-    }
-    return "?";
-}
-
-bool parseLoss(const std::string& name, LossKind& loss) {
-    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::Log})
-        if (name == lossName(k)) {
-            loss = k;
-            return true;
-        }
-    return false;
-}
 
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]) {
     float rgb[3];
@@ -138,16 +121,14 @@ PreparedSamples prepareSamples(uint32_t voxel, const std::vector<VoxelSample>& e
     return d;
 }
 
-// The network's output for normalized target t (the loss's space: the output transform's inverse).
-float normalizedTarget(const TrainSettings& settings, float invScale, float target) {
-    float t = target * invScale;
-    return settings.loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
-}
+float normalizedTarget(const TrainSettings& settings, float invScale, float target) { return lossTarget(settings.loss, invScale, target); }
 
 // One pass over `perm` in mini-batches: the loss's gradient, averaged over the batch, plus an L2 penalty of
 // weightDecay / (training samples) on every parameter but the output biases, one Adam step per batch.
+// average (if given): after every step, average = decay average + (1 - decay) parameters.
 void trainEpoch(Mlp& mlp, Adam& adam, MlpWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& perm,
-                const TrainSettings& settings, float invScale, float lr, float weightDecay) {
+                const TrainSettings& settings, float invScale, float lr, float weightDecay, std::vector<float>* average = nullptr,
+                float decay = 0.0f) {
     const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
     float y[8], dy[8];
     std::vector<float> grad(mlp.parameters().size());
@@ -157,14 +138,10 @@ void trainEpoch(Mlp& mlp, Adam& adam, MlpWorkspace& ws, const PreparedSamples& d
         for (size_t k = b; k < e; ++k) {
             size_t i = perm[k];
             mlp.forward(&d.inputs[i * size_t(nIn)], y, ws);
-            float weight = 1.0f;
-            if (settings.loss == LossKind::RelativeL2) {
-                glm::vec3 pred(std::max(0.0f, y[0]), std::max(0.0f, y[1]), std::max(0.0f, y[2]));
-                float l = luminance(pred);
-                weight = 1.0f / (l * l + 0.01f);
-            }
-            for (int c = 0; c < nOut; ++c)
-                dy[c] = 2.0f * weight * d.weights[i][c] * (y[c] - normalizedTarget(settings, invScale, d.targets[i][c]));
+            const float t[3] = {normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
+                                normalizedTarget(settings, invScale, d.targets[i][2])};
+            const float w[3] = {d.weights[i][0], d.weights[i][1], d.weights[i][2]};
+            regressionGradient(settings.loss, y, t, w, dy);
             mlp.backward(dy, ws, grad.data());
         }
         float inv = 1.0f / float(e - b);
@@ -173,6 +150,7 @@ void trainEpoch(Mlp& mlp, Adam& adam, MlpWorkspace& ws, const PreparedSamples& d
         if (wd > 0.0f)
             for (size_t q = 0; q + size_t(nOut) < grad.size(); ++q) grad[q] += wd * mlp.parameters()[q];
         adam.step(mlp.parameters(), grad, lr);
+        if (average) updateAverage(*average, mlp.parameters(), decay);
     }
 }
 
@@ -236,7 +214,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         bool diverged = false;
         for (; epoch < settings.epochs; ++epoch) {
             for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
-            float lr = settings.learningRate * std::pow(0.1f, float(epoch) / float(std::max(1, settings.epochs)));
+            const float lr = exponentialDecay(settings.learningRate, 0.1f, float(epoch) / float(std::max(1, settings.epochs)));
             trainEpoch(mlp, adam, ws, d, perm, settings, invScale, lr, weightDecay);
             if (!mlp.allFinite()) {
                 diverged = true;
@@ -322,29 +300,35 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
 }  // namespace
 
 VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const TrainSettings& settings, uint32_t generation, int epochs,
-                               float learningRate, NetworkState& state) {
+                               float learningRate, float averageDecay, NetworkState& state) {
     auto start = std::chrono::steady_clock::now();
     VoxelTrainResult& result = state.result;
     const PreparedSamples d = prepareSamples(result.voxel, entries, settings, generation);
     const float invScale = 1.0f / result.scale;
     Mlp mlp(settings.shape);
-    mlp.parameters() = result.params;
+    if (state.params.empty()) state.params = result.params;
+    mlp.parameters() = state.params;
     MlpWorkspace ws;
     if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
+    std::vector<float> average = result.params;
     SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
     std::vector<size_t> perm = d.train;
     for (int epoch = 0; epoch < epochs; ++epoch) {
         for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
-        trainEpoch(mlp, *state.adam, ws, d, perm, settings, invScale, learningRate, result.weightDecay);
+        trainEpoch(mlp, *state.adam, ws, d, perm, settings, invScale, learningRate, result.weightDecay,
+                   averageDecay > 0.0f ? &average : nullptr, averageDecay);
     }
     // Kept only if finite; a network that diverged keeps what it had (and says so).
-    if (mlp.allFinite()) {
-        result.params = mlp.parameters();
+    const bool finite = mlp.allFinite() && std::all_of(average.begin(), average.end(), [](float v) { return std::isfinite(v); });
+    if (finite) {
+        state.params = mlp.parameters();
+        result.params = averageDecay > 0.0f ? average : mlp.parameters();
     } else {
         result.events.push_back("generation " + std::to_string(generation) + ": non-finite weights, update dropped");
         state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
-        mlp.parameters() = result.params;
+        state.params = result.params;
     }
+    mlp.parameters() = result.params;
     result.trainCount += d.train.size();
     result.heldOutCount = d.heldOut.size();
     result.heldOutRelMse = shadedError(mlp, ws, d, d.evalSet(), settings, result.transform, result.scale);

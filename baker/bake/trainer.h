@@ -1,5 +1,5 @@
-// Trainer: fits one voxel's network to its training samples. A network, a loss and the Adam optimizer
-// combined: held-out split for early stopping and the reported error, deterministic initialisation and
+// Trainer: fits one voxel's network to its training samples, a short loop over baker/nn's pieces (network,
+// loss, optimizer, schedule): held-out split for early stopping and the reported error, deterministic initialisation and
 // sample order from the seed, HDR-aware losses, detection of failed trainings (non-finite weights, dead
 // ReLUs, constant output) with re-initialisation, and a constant fallback so nothing invalid is ever kept.
 #pragma once
@@ -14,19 +14,13 @@
 #include <nrad/eval.h>
 #include <nrad/format.h>
 
-#include "baker/bake/network.h"
+#include "baker/nn/adam.h"
+#include "baker/nn/loss.h"
+#include "baker/nn/mlp.h"
 #include "baker/bake/training_samples.h"
 #include "baker/bake/voxel_grid.h"
 
 namespace nrad {
-
-enum class LossKind {
-    L2,  // squared error on radiance / voxel scale
-    RelativeL2,  // squared error / (luminance of the prediction^2 + 0.01), prediction held constant
-    Log,  // squared error on log(1 + radiance / scale); the asset's output transform is then exponential
-};
-const char* lossName(LossKind loss);
-bool parseLoss(const std::string& name, LossKind& loss);
 
 struct TrainSettings {
     NetworkShape shape;
@@ -101,16 +95,19 @@ VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& samp
 // A network between the generations of training within the integral equation (baker.h): what it has become
 // (parameters, fixed output scale, the errors of its latest generation) and its optimizer's state.
 struct NetworkState {
-    VoxelTrainResult result;
+    VoxelTrainResult result;  // its params: what the asset and the targets use (the average, if averaged)
+    std::vector<float> params;  // what the optimizer steps
     std::unique_ptr<Adam> adam;  // created at the first generation
 };
 
 // Trains state's network further, `epochs` passes over `samples` (a new generation's, whose targets came from
-// the networks as they were) at a constant learning rate, from where it stood; the held-out split is salted
+// the networks as they were) at a constant learning rate, from where it stood. With averageDecay > 0 the
+// network kept is an exponential moving average of the optimizer's parameters over its steps (decay per step,
+// continuing across generations): the noise of one-bounce targets averages out. The held-out split is salted
 // with the generation. The gradient stops at the targets (semi-gradient). Returns state.result, updated:
 // its errors are this generation's, against its (noisy) targets.
 VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& samples, const TrainSettings& settings, uint32_t generation, int epochs,
-                               float learningRate, NetworkState& state);
+                               float learningRate, float averageDecay, NetworkState& state);
 // The same for samples inside the voxel, weight 1 each.
 VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::vector<const TrainingSample*>& samples,
                             const TrainSettings& settings);

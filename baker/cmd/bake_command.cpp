@@ -70,6 +70,7 @@ struct BakeOptions {
     LightingOptions lighting;
     std::string training = trainingMethodName(defaults().training);
     IntegralSettings integral = defaults().integral;
+    std::string generationLr;
     std::string saveGenerations;  // path prefix: integral training writes every round's asset there
 };
 
@@ -247,6 +248,15 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         return usage("--training " + o.training + ": expected monte-carlo or integral");
     if (o.integral.paths < 1 || o.integral.epochs < 1 || o.integral.bounces < 1 || o.integral.bounces > 8)
         return usage("--generation-paths and --generation-epochs must be positive, --bounces 1 to 8");
+    if (!o.generationLr.empty()) {
+        std::vector<float> lr;
+        if (!parseFloats(o.generationLr, lr) || lr.size() != 2 || !(lr[0] > 0.0f) || !(lr[1] > 0.0f))
+            return usage("--generation-lr " + o.generationLr + ": expected two positive learning rates, first,last");
+        o.integral.learningRate = lr[0];
+        o.integral.finalLearningRate = lr[1];
+    }
+    if (!(o.integral.averageDecay >= 0.0f && o.integral.averageDecay < 1.0f))
+        return usage("--average-decay must be in [0, 1)");
     s.integral = o.integral;
     // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
     if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
@@ -449,6 +459,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--generation-points", o->integral.points, "Integral training: fresh points per round (default: --points)");
     cmd->add_option("--generation-paths", o->integral.paths, "Integral training: target estimates per point in a round (default 1)");
     cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 2)");
+    cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.002,0.0002)");
+    cmd->add_option("--average-decay", o->integral.averageDecay, "Integral training: per-step decay of the networks' moving average, 0 = none (default 0.99)");
     cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 1)");
     cmd->add_option("--save-generations", o->saveGenerations,
                     "Integral training: also write the asset after every round as PREFIX-gN.nrad (N = 0 is the Monte Carlo start)");

@@ -19,7 +19,8 @@
 
 #include "baker/lights/light_sampler.h"
 #include "baker/scene/scene.h"
-#include "baker/util/optim.h"
+#include "baker/nn/adam.h"
+#include "baker/nn/padded_mlp.h"
 
 namespace nrad {
 
@@ -54,8 +55,8 @@ struct NeeSettings {
     bool train = true;  // false: keep the current weights (e.g. after a warm-up)
 };
 
-constexpr int kNeeInputs = 9;
-constexpr int kNeeHidden = 64;
+constexpr int kNeeInputs = PaddedMlp::kInputs;
+constexpr int kNeeHidden = PaddedMlp::kHidden;
 
 // One network evaluation's input and what came of it: the training data.
 struct NeeRecord {
@@ -65,31 +66,9 @@ struct NeeRecord {
     float weight;  // luminance of the unoccluded contribution / probability of the choice (> 0)
 };
 
-// 9 -> 64 -> 64 -> K, ReLU, logits out. Weights stored input-major (W[i][o]) so that every layer is a sum of
-// scaled rows, which vectorises over the outputs; the output rows are padded with zeros to a width of 16, 32
-// or 64.
-class NeeNetwork {
-public:
-    NeeNetwork(int outputs, uint64_t seed);
-    int outputs() const { return outputs_; }
-    std::vector<float>& parameters() { return params_; }
-    const std::vector<float>& parameters() const { return params_; }
-
-    struct Activations {
-        float h1[kNeeHidden], h2[kNeeHidden], logits[LightSampler::kMaxLightGroups];
-    };
-    void forward(const float* x, Activations& a) const;
-    // Adds dLoss/dParams to grad for one input, given dLoss/dLogits; a from forward(x).
-    void backward(const float* x, const Activations& a, const float* dLogits, float* grad) const;
-
-private:
-    size_t w3() const { return size_t(kNeeInputs) * kNeeHidden + kNeeHidden + size_t(kNeeHidden) * kNeeHidden + kNeeHidden; }
-    size_t b3() const { return w3() + size_t(kNeeHidden) * size_t(padded_); }
-
-    int outputs_;
-    int padded_;  // output rows padded to 16, 32 or 64 (zeros) so the output layer has a fixed width
-    std::vector<float> params_;
-};
+// The selection network (baker/nn/padded_mlp.h): 9 inputs, two hidden layers of 64, one logit per group.
+using NeeNetwork = PaddedMlp;
+static_assert(PaddedMlp::kMaxOutputs == int(LightSampler::kMaxLightGroups));
 
 class LightSelector {
 public:

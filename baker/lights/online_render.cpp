@@ -7,7 +7,8 @@
 
 #include <tbb/parallel_for.h>
 
-#include "baker/util/optim.h"
+#include "baker/nn/random.h"
+#include "baker/nn/schedule.h"
 
 namespace nrad {
 
@@ -40,7 +41,7 @@ void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>* records, Ray
 // Measured on split-rooms (docs/results.md): RMSE at 32 spp 2.45-2.66x below uniform's against 1.97-2.57x
 // at a constant rate.
 float warmupLearningRateScale(uint64_t done, uint64_t total) {
-    return total > 0 ? 1.0f - float(double(done) / double(total)) : 1.0f;
+    return total > 0 ? linearDecay(1.0f, float(double(done) / double(total))) : 1.0f;
 }
 
 // Mini-batches of 64 paths in a warm-up round: enough for trainBatches x 64 useful records at the previous

@@ -15,7 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "baker/bake/baker.h"
-#include "baker/bake/network.h"
+#include "baker/nn/mlp.h"
 #include "baker/scene/gltf_loader.h"
 #include "runtime/src/kernels.h"  // rt::blendedBlocksSoFar(): which path the vector kernels took
 #include "support/test_paths.h"

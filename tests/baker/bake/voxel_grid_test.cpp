@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "baker/bake/network.h"
+#include "baker/nn/mlp.h"
 #include "baker/scene/gltf_loader.h"
 #include "support/test_paths.h"
 

@@ -13,7 +13,7 @@
 #include "baker/render/path_tracer.h"
 #include "baker/render/surface.h"
 #include "baker/scene/gltf_loader.h"
-#include "baker/util/optim.h"
+#include "baker/nn/adam.h"
 #include "baker/util/threads.h"
 #include "support/test_paths.h"
 #include "support/test_scenes.h"

@@ -1,23 +1,9 @@
-// Small optimisation helpers shared by the per-voxel networks (baker/bake) and the light-selection network
-// (baker/render): the Adam optimizer and a deterministic random generator.
+// The deterministic generator of network initialisation and sample order.
 #pragma once
 
-#include <cstddef>
 #include <cstdint>
-#include <vector>
 
 namespace nrad {
-
-class Adam {
-public:
-    Adam(size_t parameterCount, float learningRate, float beta1 = 0.9f, float beta2 = 0.999f, float epsilon = 1e-8f);
-    void step(std::vector<float>& params, const std::vector<float>& grad, float learningRate);
-
-private:
-    std::vector<float> m_, v_;
-    float beta1_, beta2_, epsilon_;
-    double beta1Power_ = 1.0, beta2Power_ = 1.0;
-};
 
 // Deterministic 64-bit generator (SplitMix64), identical on every platform and standard library.
 class SplitMix64 {

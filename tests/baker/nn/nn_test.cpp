@@ -1,6 +1,6 @@
 // Networks and training: backpropagation against finite differences, deterministic initialisation, and
 // the trainer reproducing a known function of (position, normal, direction) to a stated error.
-#include "baker/bake/network.h"
+#include "baker/nn/mlp.h"
 
 #include <cmath>
 

@@ -1,5 +1,5 @@
-// Forward pass, backpropagation and Adam for the per-voxel networks.
-#include "baker/bake/network.h"
+// Forward pass and backpropagation of the per-voxel networks.
+#include "baker/nn/mlp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -21,7 +21,17 @@ int NetworkShape::maxWidth() const {
     return m;
 }
 
-Mlp::Mlp(NetworkShape shape) : shape_(std::move(shape)), params_(shape_.parameterCount(), 0.0f) {}
+Mlp::Mlp(NetworkShape shape) : shape_(std::move(shape)), params_(shape_.parameterCount(), 0.0f) {
+    size_t at = 0;
+    int in = shape_.inputs;
+    const size_t layers = shape_.hidden.size() + 1;
+    for (size_t l = 0; l < layers; ++l) {
+        int out = l + 1 == layers ? shape_.outputs : shape_.hidden[l];
+        offset_.push_back(at);
+        at += size_t(out) * size_t(in) + size_t(out);
+        in = out;
+    }
+}
 
 void Mlp::initialize(uint64_t seed, float outputBias) {
     SplitMix64 rng(seed);
@@ -66,18 +76,7 @@ void Mlp::forward(const float* x, float* y, MlpWorkspace& ws) const {
 void Mlp::backward(const float* dy, MlpWorkspace& ws, float* grad) const {
     size_t layers = shape_.hidden.size() + 1;
     ws.deltas.resize(layers + 1);
-    // Offsets of each layer's parameters.
-    std::vector<size_t> offset(layers);
-    {
-        size_t at = 0;
-        int in = shape_.inputs;
-        for (size_t l = 0; l < layers; ++l) {
-            int out = l + 1 == layers ? shape_.outputs : shape_.hidden[l];
-            offset[l] = at;
-            at += size_t(out) * size_t(in) + size_t(out);
-            in = out;
-        }
-    }
+    const std::vector<size_t>& offset = offset_;
     ws.deltas[layers].assign(dy, dy + shape_.outputs);
     for (size_t l = layers; l-- > 0;) {
         int out = l + 1 == layers ? shape_.outputs : shape_.hidden[l];

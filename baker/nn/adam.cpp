@@ -1,5 +1,5 @@
 // Adam (Kingma and Ba 2015) with bias correction.
-#include "baker/util/optim.h"
+#include "baker/nn/adam.h"
 
 #include <cmath>
 

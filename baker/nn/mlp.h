@@ -1,13 +1,15 @@
 // Mlp: the small fully connected ReLU network of one voxel, with its parameters in the asset's layout
-// (per layer: W, out x in, row-major, then b), a forward pass, backpropagation, and the Adam optimizer.
-// Deliberately plain float code: the networks are tiny (9-9-3 has 120 parameters), so clarity wins.
+// (per layer: W, out x in, row-major, then b), a forward pass and backpropagation. Plain float code in the
+// order nrad/eval.h's forward() sums (the networks are tiny: 9-9-3 has 120 parameters); no allocation per call
+// once a workspace has seen the shape. The network piece of baker/nn: loss.h turns outputs into gradients,
+// adam.h steps, schedule.h sets the rate; padded_mlp.h is the light selector's wide network.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
-#include "baker/util/optim.h"
+#include "baker/nn/random.h"
 
 namespace nrad {
 
@@ -48,6 +50,7 @@ public:
 private:
     NetworkShape shape_;
     std::vector<float> params_;
+    std::vector<size_t> offset_;  // of each layer's parameters
 };
 
 }  // namespace nrad

@@ -1,0 +1,28 @@
+// The optimizer of every network the baker trains (the voxel networks, baker/bake, and the light-selection
+// network, baker/lights): Adam, and a moving average of the parameters it steps.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace nrad {
+
+class Adam {
+public:
+    Adam(size_t parameterCount, float learningRate, float beta1 = 0.9f, float beta2 = 0.999f, float epsilon = 1e-8f);
+    void step(std::vector<float>& params, const std::vector<float>& grad, float learningRate);
+
+private:
+    std::vector<float> m_, v_;
+    float beta1_, beta2_, epsilon_;
+    double beta1Power_ = 1.0, beta2Power_ = 1.0;
+};
+
+// Exponential moving average of parameters over optimizer steps (Polyak averaging): what is kept when the
+// gradients are noisy, as with one-bounce targets. average = decay average + (1 - decay) params.
+inline void updateAverage(std::vector<float>& average, const std::vector<float>& params, float decay) {
+    for (size_t q = 0; q < average.size(); ++q) average[q] = decay * average[q] + (1.0f - decay) * params[q];
+}
+
+}  // namespace nrad

@@ -1,0 +1,60 @@
+// Regression and cross-entropy gradients.
+#include "baker/nn/loss.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace nrad {
+
+const char* lossName(LossKind loss) {
+    switch (loss) {
+        case LossKind::L2: return "l2";
+        case LossKind::RelativeL2: return "relative-l2";
+        case LossKind::Log: return "log-l2";
+    }
+    return "?";
+}
+
+bool parseLoss(const std::string& name, LossKind& loss) {
+    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::Log})
+        if (name == lossName(k)) {
+            loss = k;
+            return true;
+        }
+    return false;
+}
+
+float lossTarget(LossKind loss, float invScale, float target) {
+    float t = target * invScale;
+    return loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
+}
+
+void regressionGradient(LossKind loss, const float y[3], const float t[3], const float weight[3], float dy[3]) {
+    float w = 1.0f;
+    if (loss == LossKind::RelativeL2) {
+        const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
+        w = 1.0f / (l * l + 0.01f);
+    }
+    for (int c = 0; c < 3; ++c) dy[c] = 2.0f * w * weight[c] * (y[c] - t[c]);
+}
+
+void maskedSoftmax(const float* logits, size_t count, uint64_t mask, float* out) {
+    float m = -std::numeric_limits<float>::infinity();
+    for (size_t g = 0; g < count; ++g)
+        if (mask >> g & 1u) m = std::max(m, logits[g]);
+    float sum = 0.0f;
+    for (size_t g = 0; g < count; ++g) {
+        out[g] = (mask >> g & 1u) ? std::exp(logits[g] - m) : 0.0f;
+        sum += out[g];
+    }
+    for (size_t g = 0; g < count; ++g) out[g] = sum > 0.0f ? out[g] / sum : 0.0f;
+}
+
+void crossEntropyGradient(const float* logits, size_t count, uint64_t mask, size_t chosen, float weight, float* dLogits) {
+    float q[64];
+    maskedSoftmax(logits, std::min<size_t>(count, 64), mask, q);
+    for (size_t o = 0; o < std::min<size_t>(count, 64); ++o) dLogits[o] = weight * (q[o] - (o == chosen ? 1.0f : 0.0f));
+}
+
+}  // namespace nrad

@@ -1,0 +1,33 @@
+// The losses of the baker's networks, as the gradient with respect to the network's outputs:
+// regression for the voxel networks (radiance, per channel, with per-channel weights) and the weighted
+// softmax cross-entropy of the light selector (a distribution over candidate groups).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace nrad {
+
+enum class LossKind {
+    L2,  // squared error on radiance / voxel scale
+    RelativeL2,  // squared error / (luminance of the prediction^2 + 0.01), prediction held constant
+    Log,  // squared error on log(1 + radiance / scale); the asset's output transform is then exponential
+};
+const char* lossName(LossKind loss);
+bool parseLoss(const std::string& name, LossKind& loss);
+
+// The regression target in the network's output space: t / scale, through log(1 + .) for the Log loss.
+float lossTarget(LossKind loss, float invScale, float target);
+
+// dLoss/dy for one sample of three outputs y against targets t (in the output space, lossTarget), each channel
+// weighing weight[c].
+void regressionGradient(LossKind loss, const float y[3], const float t[3], const float weight[3], float dy[3]);
+
+// Softmax of the logits over the entries in `mask` (bit g; others get 0).
+void maskedSoftmax(const float* logits, size_t count, uint64_t mask, float* out);
+
+// dLoss/dLogits of weight x (-log softmax(logits)[chosen]) over the entries in `mask`: weight (q - onehot).
+void crossEntropyGradient(const float* logits, size_t count, uint64_t mask, size_t chosen, float weight, float* dLogits);
+
+}  // namespace nrad
