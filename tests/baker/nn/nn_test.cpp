@@ -1,10 +1,17 @@
-// Networks and training: backpropagation against finite differences, deterministic initialisation, and
-// the trainer reproducing a known function of (position, normal, direction) to a stated error.
+// baker/nn and the trainer built on it: backpropagation against finite differences, the light selector's
+// padded network against the plain one on the same weights, the losses' gradients against finite
+// differences, Adam and the schedules, deterministic initialisation, and the trainer reproducing a known
+// function of (position, normal, direction) to a stated error.
 #include "baker/nn/mlp.h"
 
 #include <cmath>
 
 #include <gtest/gtest.h>
+
+#include "baker/nn/adam.h"
+#include "baker/nn/loss.h"
+#include "baker/nn/padded_mlp.h"
+#include "baker/nn/schedule.h"
 
 #include "baker/bake/trainer.h"
 
@@ -44,6 +51,125 @@ TEST(Mlp, BackpropagationMatchesFiniteDifferences) {
             EXPECT_NEAR(grad[i], numeric, 2e-3 * std::max(1.0, std::abs(numeric))) << "parameter " << i;
         }
     }
+}
+
+// The light selector's network and the plain Mlp are one function: on the same weights (the padded
+// input-major layout converted to the asset's row-major one) they give the same logits and the same gradient.
+TEST(PaddedMlp, AgreesWithThePlainNetworkOnTheSameWeights) {
+    for (int outputs : {3, 17, 40, 64}) {
+        PaddedMlp padded(outputs, 99);
+        // Give the output layer and biases full-size values (initialisation keeps them small).
+        SplitMix64 rng(5);
+        std::vector<float>& pp = padded.parameters();
+        const std::vector<float> layout = padded.toRowMajor(std::vector<float>(pp.size(), 1.0f));
+        for (size_t i = 0; i < pp.size(); ++i)
+            if (pp[i] != 0.0f || i < size_t(9 * 64)) pp[i] = 0.3f * (2.0f * rng.uniform() - 1.0f);
+        NetworkShape shape;
+        shape.hidden = {64, 64};
+        shape.outputs = outputs;
+        Mlp plain(shape);
+        ASSERT_EQ(plain.parameters().size(), layout.size());
+        plain.parameters() = padded.toRowMajor(pp);
+        for (int trial = 0; trial < 20; ++trial) {
+            float x[9];
+            for (float& v : x) v = 2.0f * rng.uniform() - 1.0f;
+            PaddedMlp::Activations a;
+            padded.forward(x, a);
+            std::vector<float> y(static_cast<size_t>(outputs));
+            MlpWorkspace ws;
+            plain.forward(x, y.data(), ws);
+            for (int o = 0; o < outputs; ++o) ASSERT_NEAR(a.logits[o], y[size_t(o)], 1e-5f * std::max(1.0f, std::abs(y[size_t(o)])));
+            float dLogits[PaddedMlp::kMaxOutputs] = {};
+            for (int o = 0; o < outputs; ++o) dLogits[o] = 2.0f * rng.uniform() - 1.0f;
+            std::vector<float> gp(pp.size(), 0.0f), gq(plain.parameters().size(), 0.0f);
+            padded.backward(x, a, dLogits, gp.data());
+            plain.backward(dLogits, ws, gq.data());
+            const std::vector<float> g = padded.toRowMajor(gp);
+            for (size_t i = 0; i < g.size(); ++i) ASSERT_NEAR(g[i], gq[i], 1e-5f * std::max(1.0f, std::abs(gq[i]))) << "parameter " << i;
+        }
+    }
+}
+
+TEST(Loss, RegressionGradientsMatchFiniteDifferences) {
+    const float t[3] = {0.7f, 1.3f, 0.2f}, w[3] = {1.0f, 0.5f, 2.0f};
+    for (LossKind loss : {LossKind::L2, LossKind::Log, LossKind::RelativeL2}) {
+        float y[3] = {0.9f, 1.0f, 0.6f}, dy[3];
+        regressionGradient(loss, y, t, w, dy);
+        // The relative loss holds its weight 1 / (lum(y)^2 + 0.01) constant (the prediction's luminance).
+        const float l = 0.2126f * y[0] + 0.7152f * y[1] + 0.0722f * y[2];
+        const double scale = loss == LossKind::RelativeL2 ? 1.0 / (double(l) * l + 0.01) : 1.0;
+        for (int c = 0; c < 3; ++c) {
+            auto value = [&](float v) {
+                double e = 0.0;
+                for (int k = 0; k < 3; ++k) {
+                    const double d = double(k == c ? v : y[k]) - t[k];
+                    e += scale * w[k] * d * d;
+                }
+                return e;
+            };
+            const double numeric = (value(y[c] + 1e-3f) - value(y[c] - 1e-3f)) / 2e-3;
+            EXPECT_NEAR(dy[c], numeric, 1e-3 * std::max(1.0, std::abs(numeric))) << lossName(loss) << " channel " << c;
+        }
+    }
+    // Targets in the output space: divided by the scale, through log1p for the log loss.
+    EXPECT_FLOAT_EQ(lossTarget(LossKind::L2, 0.5f, 3.0f), 1.5f);
+    EXPECT_FLOAT_EQ(lossTarget(LossKind::Log, 0.5f, 3.0f), std::log1p(1.5f));
+}
+
+TEST(Loss, CrossEntropyGradientMatchesFiniteDifferences) {
+    const float logits[5] = {0.3f, -1.2f, 2.0f, 0.0f, 0.7f};
+    const uint64_t mask = 0b11011;  // group 2 is not a candidate
+    float d[5];
+    crossEntropyGradient(logits, 5, mask, 3, 0.8f, d);
+    EXPECT_EQ(d[2], 0.0f);
+    for (int g = 0; g < 5; ++g) {
+        if (!(mask >> g & 1u)) continue;
+        auto value = [&](float v) {
+            float l[5], q[5];
+            std::copy(logits, logits + 5, l);
+            l[g] = v;
+            maskedSoftmax(l, 5, mask, q);
+            return -0.8 * std::log(double(q[3]));
+        };
+        const double numeric = (value(logits[g] + 1e-3f) - value(logits[g] - 1e-3f)) / 2e-3;
+        EXPECT_NEAR(d[g], numeric, 1e-3) << "group " << g;
+    }
+    float q[5];
+    maskedSoftmax(logits, 5, mask, q);
+    EXPECT_NEAR(q[0] + q[1] + q[3] + q[4], 1.0f, 1e-6f);
+    EXPECT_EQ(q[2], 0.0f);
+}
+
+TEST(Adam, StepsByTheLearningRateAndFindsTheMinimum) {
+    // The first step moves every parameter by the learning rate against its gradient's sign (bias
+    // correction); a quadratic's minimum is then found.
+    std::vector<float> p = {1.0f, -2.0f, 0.5f};
+    Adam adam(p.size(), 0.1f);
+    adam.step(p, {4.0f, -0.001f, 0.0f}, 0.1f);
+    EXPECT_NEAR(p[0], 0.9f, 1e-5f);
+    EXPECT_NEAR(p[1], -1.9f, 1e-4f);
+    EXPECT_EQ(p[2], 0.5f);
+    const float target[3] = {0.25f, -0.5f, 2.0f};
+    for (int i = 0; i < 3000; ++i) {
+        std::vector<float> g(3);
+        for (int k = 0; k < 3; ++k) g[size_t(k)] = 2.0f * (p[size_t(k)] - target[k]);
+        adam.step(p, g, exponentialDecay(0.05f, 0.01f, float(i) / 3000.0f));
+    }
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(p[size_t(k)], target[k], 1e-3f);
+    // The moving average of the parameters: decay 0.5 halves the distance each update.
+    std::vector<float> avg = {0.0f};
+    updateAverage(avg, {1.0f}, 0.5f);
+    updateAverage(avg, {1.0f}, 0.5f);
+    EXPECT_FLOAT_EQ(avg[0], 0.75f);
+}
+
+TEST(Schedule, EndPoints) {
+    EXPECT_FLOAT_EQ(exponentialDecay(0.01f, 0.1f, 0.0f), 0.01f);
+    EXPECT_FLOAT_EQ(exponentialDecay(0.01f, 0.1f, 1.0f), 0.001f);
+    EXPECT_FLOAT_EQ(exponentialDecay(0.01f, 0.1f, 0.5f), 0.01f * std::sqrt(0.1f));
+    EXPECT_FLOAT_EQ(linearDecay(2.0f, 0.25f), 1.5f);
+    EXPECT_EQ(linearDecay(2.0f, 1.0f), 0.0f);
+    EXPECT_EQ(linearDecay(2.0f, 3.0f), 0.0f);
 }
 
 TEST(Mlp, InitialisationIsDeterministic) {
