@@ -123,28 +123,35 @@ PreparedSamples prepareSamples(uint32_t voxel, const std::vector<VoxelSample>& e
 
 float normalizedTarget(const TrainSettings& settings, float invScale, float target) { return lossTarget(settings.loss, invScale, target); }
 
-// One pass over `perm` in mini-batches: the loss's gradient, averaged over the batch, plus an L2 penalty of
-// weightDecay / (training samples) on every parameter but the output biases, one Adam step per batch.
-// average (if given): after every step, average = decay average + (1 - decay) parameters.
-void trainEpoch(Mlp& mlp, Adam& adam, MlpWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& perm,
+// One pass over `perm` in mini-batches (batch-major kernels): the loss's gradient, averaged over the batch, plus
+// an L2 penalty of weightDecay / (training samples) on every parameter but the output biases, one Adam step
+// per batch; average (if given): after every step, average = decay average + (1 - decay) parameters.
+void trainEpoch(Mlp& mlp, Adam& adam, MlpBatchWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& perm,
                 const TrainSettings& settings, float invScale, float lr, float weightDecay, std::vector<float>* average = nullptr,
                 float decay = 0.0f) {
     const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
-    float y[8], dy[8];
-    std::vector<float> grad(mlp.parameters().size());
-    for (size_t b = 0; b < perm.size(); b += size_t(settings.batchSize)) {
-        size_t e = std::min(perm.size(), b + size_t(settings.batchSize));
+    const size_t L = mlp.layers();
+    const size_t batch = size_t(std::clamp(settings.batchSize, 1, MlpBatchWorkspace::kMaxBatch));
+    std::vector<float> grad(mlp.parameters().size()), x(batch * size_t(nIn));
+    for (size_t b = 0; b < perm.size(); b += batch) {
+        const size_t e = std::min(perm.size(), b + batch);
+        const int count = int(e - b);
         std::fill(grad.begin(), grad.end(), 0.0f);
-        for (size_t k = b; k < e; ++k) {
-            size_t i = perm[k];
-            mlp.forward(&d.inputs[i * size_t(nIn)], y, ws);
+        for (size_t k = b; k < e; ++k)
+            std::copy_n(&d.inputs[perm[k] * size_t(nIn)], nIn, &x[(k - b) * size_t(nIn)]);
+        mlp.forwardBatch(x.data(), count, ws);
+        for (int k = 0; k < count; ++k) {
+            const size_t i = perm[b + size_t(k)];
+            float y[3], dy[3];
+            for (int c = 0; c < nOut; ++c) y[c] = ws.value(L, c)[k];
             const float t[3] = {normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
                                 normalizedTarget(settings, invScale, d.targets[i][2])};
             const float w[3] = {d.weights[i][0], d.weights[i][1], d.weights[i][2]};
             regressionGradient(settings.loss, y, t, w, dy);
-            mlp.backward(dy, ws, grad.data());
+            for (int c = 0; c < nOut; ++c) ws.delta(L, c)[k] = dy[c];
         }
-        float inv = 1.0f / float(e - b);
+        mlp.backwardBatch(ws, grad.data());
+        float inv = 1.0f / float(count);
         for (float& g : grad) g *= inv;
         const float wd = weightDecay / float(std::max<size_t>(1, d.train.size()));
         if (wd > 0.0f)
@@ -195,6 +202,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
 
     Mlp mlp(settings.shape);
     MlpWorkspace ws;
+    MlpBatchWorkspace bws;
     std::vector<float> y(static_cast<size_t>(nOut));
     auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, ws, d, set, settings, result.transform, result.scale); };
 
@@ -215,7 +223,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         for (; epoch < settings.epochs; ++epoch) {
             for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
             const float lr = exponentialDecay(settings.learningRate, 0.1f, float(epoch) / float(std::max(1, settings.epochs)));
-            trainEpoch(mlp, adam, ws, d, perm, settings, invScale, lr, weightDecay);
+            trainEpoch(mlp, adam, bws, d, perm, settings, invScale, lr, weightDecay);
             if (!mlp.allFinite()) {
                 diverged = true;
                 break;
@@ -248,7 +256,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
             for (size_t i : train) {
                 mlp.forward(&d.inputs[i * size_t(nIn)], y.data(), ws);
                 for (int u = 0; u < width; ++u)
-                    if (ws.activations[1][size_t(u)] > 0.0f) alive[size_t(u)] = true;
+                    if (ws.activations(1)[u] > 0.0f) alive[size_t(u)] = true;
                 glm::dvec3 p(y[0], y[1], y[2]);
                 glm::dvec3 t(normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
                              normalizedTarget(settings, invScale, d.targets[i][2]));
@@ -309,13 +317,14 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     if (state.params.empty()) state.params = result.params;
     mlp.parameters() = state.params;
     MlpWorkspace ws;
+    MlpBatchWorkspace bws;
     if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
     std::vector<float> average = result.params;
     SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
     std::vector<size_t> perm = d.train;
     for (int epoch = 0; epoch < epochs; ++epoch) {
         for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
-        trainEpoch(mlp, *state.adam, ws, d, perm, settings, invScale, learningRate, result.weightDecay,
+        trainEpoch(mlp, *state.adam, bws, d, perm, settings, invScale, learningRate, result.weightDecay,
                    averageDecay > 0.0f ? &average : nullptr, averageDecay);
     }
     // Kept only if finite; a network that diverged keeps what it had (and says so).

@@ -48,58 +48,165 @@ void Mlp::initialize(uint64_t seed, float outputBias) {
     }
 }
 
+namespace {
+void prepare(const NetworkShape& shape, MlpWorkspace& ws) {
+    const size_t layers = shape.hidden.size() + 1;
+    if (ws.at.size() == layers + 2) return;
+    ws.at.assign(1, 0);
+    ws.at.push_back(size_t(shape.inputs));
+    for (size_t l = 0; l < layers; ++l) ws.at.push_back(ws.at.back() + size_t(l + 1 == layers ? shape.outputs : shape.hidden[l]));
+    ws.values.assign(ws.at.back(), 0.0f);
+    ws.deltas.assign(ws.at.back(), 0.0f);
+}
+}  // namespace
+
+// Each output's sum runs from its bias up in input order (as nrad/eval.h's forward), all outputs of a layer at
+// once so that their chains overlap.
 void Mlp::forward(const float* x, float* y, MlpWorkspace& ws) const {
-    size_t layers = shape_.hidden.size() + 1;
-    ws.activations.resize(layers + 1);
-    ws.activations[0].assign(x, x + shape_.inputs);
-    const float* p = params_.data();
+    prepare(shape_, ws);
+    const size_t layers = shape_.hidden.size() + 1;
+    std::copy(x, x + shape_.inputs, ws.values.begin());
     int in = shape_.inputs;
     for (size_t l = 0; l < layers; ++l) {
-        bool last = l + 1 == layers;
-        int out = last ? shape_.outputs : shape_.hidden[l];
-        const float* W = p;
-        const float* b = p + size_t(out) * size_t(in);
-        std::vector<float>& a = ws.activations[l + 1];
-        a.resize(size_t(out));
-        const std::vector<float>& prev = ws.activations[l];
-        for (int o = 0; o < out; ++o) {
-            float s = b[o];
-            for (int i = 0; i < in; ++i) s += W[size_t(o) * size_t(in) + size_t(i)] * prev[size_t(i)];
-            a[size_t(o)] = last ? s : std::max(0.0f, s);
+        const bool last = l + 1 == layers;
+        const int out = last ? shape_.outputs : shape_.hidden[l];
+        const float* W = params_.data() + offset_[l];
+        const float* b = W + size_t(out) * size_t(in);
+        const float* prev = ws.values.data() + ws.at[l];
+        float* a = ws.values.data() + ws.at[l + 1];
+        for (int o = 0; o < out; ++o) a[o] = b[o];
+        for (int i = 0; i < in; ++i) {
+            const float xi = prev[i];
+            for (int o = 0; o < out; ++o) a[o] += W[size_t(o) * size_t(in) + size_t(i)] * xi;
         }
-        p = b + out;
+        if (!last)
+            for (int o = 0; o < out; ++o) a[o] = std::max(0.0f, a[o]);
         in = out;
     }
-    std::copy(ws.activations[layers].begin(), ws.activations[layers].end(), y);
+    std::copy(ws.values.begin() + std::ptrdiff_t(ws.at[layers]), ws.values.begin() + std::ptrdiff_t(ws.at[layers + 1]), y);
 }
 
 void Mlp::backward(const float* dy, MlpWorkspace& ws, float* grad) const {
-    size_t layers = shape_.hidden.size() + 1;
-    ws.deltas.resize(layers + 1);
-    const std::vector<size_t>& offset = offset_;
-    ws.deltas[layers].assign(dy, dy + shape_.outputs);
+    const size_t layers = shape_.hidden.size() + 1;
+    std::copy(dy, dy + shape_.outputs, ws.deltas.begin() + std::ptrdiff_t(ws.at[layers]));
     for (size_t l = layers; l-- > 0;) {
-        int out = l + 1 == layers ? shape_.outputs : shape_.hidden[l];
-        int in = l == 0 ? shape_.inputs : shape_.hidden[l - 1];
-        const float* W = params_.data() + offset[l];
-        float* gW = grad + offset[l];
+        const int out = l + 1 == layers ? shape_.outputs : shape_.hidden[l];
+        const int in = l == 0 ? shape_.inputs : shape_.hidden[l - 1];
+        const float* W = params_.data() + offset_[l];
+        float* gW = grad + offset_[l];
         float* gb = gW + size_t(out) * size_t(in);
-        const std::vector<float>& prev = ws.activations[l];
-        const std::vector<float>& delta = ws.deltas[l + 1];
+        const float* prev = ws.values.data() + ws.at[l];
+        const float* delta = ws.deltas.data() + ws.at[l + 1];
         for (int o = 0; o < out; ++o) {
-            float d = delta[size_t(o)];
+            const float d = delta[o];
             if (d == 0.0f) continue;
             gb[o] += d;
-            for (int i = 0; i < in; ++i) gW[size_t(o) * size_t(in) + size_t(i)] += d * prev[size_t(i)];
+            for (int i = 0; i < in; ++i) gW[size_t(o) * size_t(in) + size_t(i)] += d * prev[i];
         }
         if (l == 0) break;
-        std::vector<float>& back = ws.deltas[l];
-        back.assign(size_t(in), 0.0f);
+        // The previous layer's deltas: each a sum over outputs in output order, zero for inactive units.
+        float* back = ws.deltas.data() + ws.at[l];
+        for (int i = 0; i < in; ++i) back[i] = 0.0f;
+        for (int o = 0; o < out; ++o) {
+            const float d = delta[o];
+            for (int i = 0; i < in; ++i) back[i] += W[size_t(o) * size_t(in) + size_t(i)] * d;
+        }
+        for (int i = 0; i < in; ++i)
+            if (prev[i] <= 0.0f) back[i] = 0.0f;  // ReLU'(z) = 0 for inactive units
+    }
+}
+
+namespace {
+constexpr int B = MlpBatchWorkspace::kMaxBatch;
+constexpr int kLanes = 8;  // partial sums of the per-parameter sums over the batch
+
+void prepareBatch(const NetworkShape& shape, MlpBatchWorkspace& ws) {
+    const size_t layers = shape.hidden.size() + 1;
+    if (ws.at.size() == layers + 2) return;
+    ws.at.assign(1, 0);
+    ws.at.push_back(size_t(shape.inputs) * B);
+    for (size_t l = 0; l < layers; ++l) ws.at.push_back(ws.at.back() + size_t(l + 1 == layers ? shape.outputs : shape.hidden[l]) * B);
+    ws.values.assign(ws.at.back(), 0.0f);
+    ws.deltas.assign(ws.at.back(), 0.0f);
+}
+
+// sum_k a[k] b[k] over n (a multiple of kLanes) in kLanes partial sums, added up in lane order.
+inline float dot(const float* __restrict a, const float* __restrict b, int n) {
+    float acc[kLanes] = {};
+    for (int k = 0; k < n; k += kLanes)
+        for (int j = 0; j < kLanes; ++j) acc[j] += a[k + j] * b[k + j];
+    float s = 0.0f;
+    for (int j = 0; j < kLanes; ++j) s += acc[j];
+    return s;
+}
+}  // namespace
+
+void Mlp::forwardBatch(const float* x, int count, MlpBatchWorkspace& ws) const {
+    prepareBatch(shape_, ws);
+    ws.count = count;
+    const int n = (count + kLanes - 1) / kLanes * kLanes;  // padded samples hold zeros: finite, no gradient
+    for (int i = 0; i < shape_.inputs; ++i) {
+        float* v = ws.value(0, i);
+        for (int k = 0; k < count; ++k) v[k] = x[size_t(k) * size_t(shape_.inputs) + size_t(i)];
+        for (int k = count; k < n; ++k) v[k] = 0.0f;
+    }
+    int in = shape_.inputs;
+    for (size_t l = 0; l < layers(); ++l) {
+        const bool last = l + 1 == layers();
+        const int out = last ? shape_.outputs : shape_.hidden[l];
+        const float* W = params_.data() + offset_[l];
+        const float* b = W + size_t(out) * size_t(in);
+        for (int o = 0; o < out; ++o) {
+            float* __restrict a = ws.value(l + 1, o);
+            for (int k = 0; k < n; ++k) a[k] = b[o];
+            for (int i = 0; i < in; ++i) {
+                const float w = W[size_t(o) * size_t(in) + size_t(i)];
+                const float* __restrict p = ws.value(l, i);
+                for (int k = 0; k < n; ++k) a[k] += w * p[k];
+            }
+            if (!last)
+                for (int k = 0; k < n; ++k) a[k] = a[k] > 0.0f ? a[k] : 0.0f;
+        }
+        in = out;
+    }
+}
+
+void Mlp::backwardBatch(MlpBatchWorkspace& ws, float* grad) const {
+    const int n = (ws.count + kLanes - 1) / kLanes * kLanes;
+    const size_t L = layers();
+    for (int o = 0; o < shape_.outputs; ++o) {
+        float* d = ws.delta(L, o);
+        for (int k = ws.count; k < n; ++k) d[k] = 0.0f;
+    }
+    for (size_t l = L; l-- > 0;) {
+        const int out = l + 1 == L ? shape_.outputs : shape_.hidden[l];
+        const int in = l == 0 ? shape_.inputs : shape_.hidden[l - 1];
+        const float* W = params_.data() + offset_[l];
+        float* gW = grad + offset_[l];
+        float* gb = gW + size_t(out) * size_t(in);
+        for (int o = 0; o < out; ++o) {
+            const float* d = ws.delta(l + 1, o);
+            float sum = 0.0f;
+            {
+                float acc[kLanes] = {};
+                for (int k = 0; k < n; k += kLanes)
+                    for (int j = 0; j < kLanes; ++j) acc[j] += d[k + j];
+                for (int j = 0; j < kLanes; ++j) sum += acc[j];
+            }
+            gb[o] += sum;
+            for (int i = 0; i < in; ++i) gW[size_t(o) * size_t(in) + size_t(i)] += dot(d, ws.value(l, i), n);
+        }
+        if (l == 0) break;
         for (int i = 0; i < in; ++i) {
-            if (prev[size_t(i)] <= 0.0f) continue;  // ReLU'(z) = 0 for inactive units
-            float s = 0.0f;
-            for (int o = 0; o < out; ++o) s += W[size_t(o) * size_t(in) + size_t(i)] * delta[size_t(o)];
-            back[size_t(i)] = s;
+            float* __restrict back = ws.delta(l, i);
+            for (int k = 0; k < n; ++k) back[k] = 0.0f;
+            for (int o = 0; o < out; ++o) {
+                const float w = W[size_t(o) * size_t(in) + size_t(i)];
+                const float* __restrict d = ws.delta(l + 1, o);
+                for (int k = 0; k < n; ++k) back[k] += w * d[k];
+            }
+            const float* __restrict p = ws.value(l, i);
+            for (int k = 0; k < n; ++k) back[k] = p[k] > 0.0f ? back[k] : 0.0f;  // ReLU'(z) = 0 for inactive units
         }
     }
 }

@@ -21,10 +21,24 @@ struct NetworkShape {
     int maxWidth() const;
 };
 
-// Scratch space for one forward/backward pass (activations per layer).
+// Scratch space for one forward/backward pass: every layer's activations (layer 0 = the inputs) and deltas,
+// one flat buffer each, sized on first use.
 struct MlpWorkspace {
-    std::vector<std::vector<float>> activations;  // [layer][unit], layer 0 = inputs
-    std::vector<std::vector<float>> deltas;
+    std::vector<float> values, deltas;
+    std::vector<size_t> at;  // offset of layer l's units
+    const float* activations(size_t layer) const { return values.data() + at[layer]; }
+};
+
+// Scratch space of a mini-batch pass (forwardBatch / backwardBatch): every layer's activations and deltas
+// batch-major, unit u of layer l for sample k at at[l] + u kMaxBatch + k.
+struct MlpBatchWorkspace {
+    static constexpr int kMaxBatch = 64;
+    std::vector<float> values, deltas;
+    std::vector<size_t> at;
+    int count = 0;
+    // Layer l's unit u over the batch's samples.
+    float* value(size_t layer, int unit) { return values.data() + at[layer] + size_t(unit) * kMaxBatch; }
+    float* delta(size_t layer, int unit) { return deltas.data() + at[layer] + size_t(unit) * kMaxBatch; }
 };
 
 class Mlp {
@@ -44,6 +58,15 @@ public:
     void forward(const float* x, float* y, MlpWorkspace& ws) const;
     // Adds dLoss/dParams for one sample to `grad`, given dLoss/dy; forward() must have run on ws for x.
     void backward(const float* dy, MlpWorkspace& ws, float* grad) const;
+
+    // The same for a mini-batch of count <= kMaxBatch samples (x: count rows of inputs), vectorised over the
+    // samples: each output is the same sum as forward()'s, bit for bit. The outputs are ws.value(last, c).
+    void forwardBatch(const float* x, int count, MlpBatchWorkspace& ws) const;
+    // Adds the batch's summed dLoss/dParams to `grad`, given dLoss/dy in ws.delta(last, c) for c < outputs
+    // (forwardBatch must have run): forward()/backward() sample by sample up to the order of the sum over the
+    // samples (tests hold them to 1e-5).
+    void backwardBatch(MlpBatchWorkspace& ws, float* grad) const;
+    size_t layers() const { return shape_.hidden.size() + 1; }
 
     bool allFinite() const;
 
