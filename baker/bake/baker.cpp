@@ -91,6 +91,8 @@ glm::vec3 positionInCell(const eval::Partition& partition, const AdaptivePartiti
 }
 }  // namespace
 
+uint32_t roundPoints(size_t networks) { return uint32_t(std::clamp<size_t>(2000 * networks, 50000, 4000000)); }
+
 const char* trainingMethodName(TrainingMethod method) { return method == TrainingMethod::Integral ? "integral" : "monte-carlo"; }
 
 bool parseTrainingMethod(const std::string& name, TrainingMethod& method) {
@@ -215,10 +217,16 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         if (!byVoxel[v].empty()) occupied.push_back(v);
     auto t2 = std::chrono::steady_clock::now();
     result.voxels.resize(occupied.size());
+    TrainSettings startTrain = settings.train;  // integral training: a short start (IntegralSettings)
+    if (settings.training == TrainingMethod::Integral) {
+        startTrain.epochs = std::min(startTrain.epochs, settings.integral.startEpochs);
+        startTrain.patience = std::min(startTrain.patience, settings.integral.startPatience);
+        if (startTrain.weightDecays.size() > 1) startTrain.weightDecays.resize(1);
+    }
     std::atomic<size_t> done{0};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k != r.end(); ++k) {
-            result.voxels[k] = trainVoxel(occupied[k], byVoxel[occupied[k]], settings.train);
+            result.voxels[k] = trainVoxel(occupied[k], byVoxel[occupied[k]], startTrain);
             size_t d = ++done;
             if (progress.training) progress.training(double(d) / double(occupied.size()));
         }
@@ -276,7 +284,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         }
         const ScatteredRadiance tail = [&field](const SurfaceInteraction& si) { return field.scattered(si); };
         SampleSettings round = settings.samples;
-        round.points = in.points > 0 ? in.points : settings.samples.points;
+        round.points = in.points > 0 ? in.points : roundPoints(states.size());
         round.paths = std::max(1u, in.paths);
         round.firstPoint = settings.samples.points;
         TargetEstimator estimator{&tail, std::max(1, in.bounces)};
@@ -363,7 +371,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
         const IntegralSettings& in = settings.integral;
         j["bake"]["training"] = {{"method", trainingMethodName(settings.training)},
                                  {"generations", in.generations},
-                                 {"points_per_generation", in.points > 0 ? in.points : s.points},
+                                 {"points_per_generation", in.points > 0 ? in.points : roundPoints(result.voxels.size())},
                                  {"paths_per_point", in.paths},
                                  {"bounces", in.bounces},
                                  {"epochs_per_generation", in.epochs},

@@ -31,11 +31,14 @@ bool parseTrainingMethod(const std::string& name, TrainingMethod& method);
 // geometrically from `learningRate` to `finalLearningRate` over the rounds.
 struct IntegralSettings {
     uint32_t generations = 8;
-    uint32_t points = 0;  // per round; 0: SampleSettings::points
-    uint32_t paths = 1;  // target estimates per point in a round
-    int bounces = 1;
-    int epochs = 2;
-    float learningRate = 0.002f, finalLearningRate = 0.0002f;
+    uint32_t points = 0;  // per round; 0: 2,000 per network, at least 50,000
+    uint32_t paths = 2;  // target estimates per point in a round
+    // The start's training, short: it only has to give the first round's targets something to stand on (at
+    // most these epochs and patience, the first of TrainSettings::weightDecays only).
+    int startEpochs = 300, startPatience = 50;
+    int bounces = 2;
+    int epochs = 4;
+    float learningRate = 0.01f, finalLearningRate = 0.0005f;
     float averageDecay = 0.99f;  // per step, of the parameters' moving average (0: none)
 };
 

@@ -260,6 +260,9 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.integral = o.integral;
     // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
     if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
+    // ... and from 750 points per grid cell (at least 20,000) unless told.
+    if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints)
+        o.points = uint32_t(std::clamp<uint64_t>(750ull * s.grid.x * s.grid.y * s.grid.z, 20000, 4000000));
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -453,15 +456,16 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
     cmd->add_option("--training", o->training,
                     "monte-carlo (default: each target from --paths full paths) or integral (within the integral equation: "
-                    "a Monte Carlo start of --paths paths per point, default 4, then rounds of one-bounce targets with the "
-                    "networks for the rest of the path; docs/training.md)");
+                    "a short Monte Carlo start of --points points, default 750 per voxel, and --paths paths, default 4, then "
+                    "rounds of fresh points whose targets are --bounces bounces with the networks for the rest of the path; "
+                    "docs/training.md)");
     cmd->add_option("--generations", o->integral.generations, "Integral training: rounds after the Monte Carlo start (default 8)");
-    cmd->add_option("--generation-points", o->integral.points, "Integral training: fresh points per round (default: --points)");
-    cmd->add_option("--generation-paths", o->integral.paths, "Integral training: target estimates per point in a round (default 1)");
-    cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 2)");
-    cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.002,0.0002)");
+    cmd->add_option("--generation-points", o->integral.points, "Integral training: fresh points per round (default 2,000 per network, at least 50,000)");
+    cmd->add_option("--generation-paths", o->integral.paths, "Integral training: target estimates per point in a round (default 2)");
+    cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 4)");
+    cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.01,0.0005)");
     cmd->add_option("--average-decay", o->integral.averageDecay, "Integral training: per-step decay of the networks' moving average, 0 = none (default 0.99)");
-    cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 1)");
+    cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 2)");
     cmd->add_option("--save-generations", o->saveGenerations,
                     "Integral training: also write the asset after every round as PREFIX-gN.nrad (N = 0 is the Monte Carlo start)");
     cmd->add_option("--weight-decay", o->weightDecay,

@@ -9,6 +9,7 @@
 #include "baker/render/bsdf.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
+#include "baker/render/surface.h"
 #include "baker/util/threads.h"
 #include "support/test_scenes.h"
 
@@ -99,6 +100,43 @@ TEST(Furnace, PathLengthTwoIsOneBounceOfTheLobe) {
         glm::dvec3 mean = image.mean();
         EXPECT_NEAR(mean.x, 1.0 + e, 0.01 * (1.0 + e))
             << "metallic " << lobe.metallic << " roughness " << lobe.roughness << " specular " << lobe.specular;
+    }
+}
+
+// Training within the integral equation: one (or two) bounce(s) of NEE and BSDF sampling with a tail standing
+// in for the rest of the path. In the furnace with a constant tail T (the scattered radiance it claims at every
+// vertex) the estimate's mean is a (Le + T) for one bounce and a (Le + a (Le + T)) for two, whatever T: the
+// emission found by NEE and by the BSDF sample adds up to Le once (MIS), the tail is added once at the cut.
+TEST(Furnace, ScatteredRadianceWithATailIsOneBounceOfIt) {
+    ThreadScope threads(1);
+    const float a = 0.7f;
+    const glm::vec3 Le(0.5f, 1.0f, 2.0f), T(3.0f, 0.25f, 1.0f);
+    Scene scene = test::makeSphereFurnace(diffuseEmitter(a, Le));
+    Accel accel(scene);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    const ScatteredRadiance tail = [&](const SurfaceInteraction&) { return T; };
+    for (int bounces : {1, 2}) {
+        glm::dvec3 sum(0.0);
+        RayCounters counters;
+        const int n = 1 << 17;
+        for (int i = 0; i < n; ++i) {
+            Sampler sampler(0x5eedu, uint32_t(i));
+            glm::vec2 u = sampler.get2D();
+            // A point on the sphere (radius 1), looking inwards.
+            const float z = 1.0f - 2.0f * u.x, r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 6.2831853f * u.y;
+            const glm::vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+            Hit hit = accel.intersect(glm::vec3(0.0f), d);
+            ASSERT_TRUE(hit.valid());
+            SurfaceInteraction si = makeInteraction(scene, hit, d);
+            sum += glm::dvec3(tracer.scatteredRadiance(si, sampler, bounces, tail, counters));
+        }
+        const glm::dvec3 mean = sum / double(n);
+        const glm::dvec3 once = double(a) * (glm::dvec3(Le) + glm::dvec3(T));
+        const glm::dvec3 expected = bounces == 1 ? once : double(a) * (glm::dvec3(Le) + once);
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(mean[k] / expected[k], 1.0, 0.005) << bounces << " bounce(s), channel " << k;
+        // Rays: one shadow ray per vertex before the cut and one extension ray per bounce, at most.
+        EXPECT_LE(counters.total(), uint64_t(2 * bounces) * uint64_t(n));
     }
 }
 
