@@ -304,7 +304,9 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
             result.sampleStats.nonFinitePaths += stats.nonFinitePaths;
             result.sampleCount += fresh.size();
             std::vector<uint32_t> cells(fresh.size());
-            for (size_t i = 0; i < fresh.size(); ++i) cells[i] = adaptive ? cellOfPoint(partition, fresh[i].position) : fresh[i].voxel;
+            tbb::parallel_for(size_t(0), fresh.size(), [&](size_t i) {
+                cells[i] = adaptive ? cellOfPoint(partition, fresh[i].position) : fresh[i].voxel;
+            });
             std::vector<std::vector<VoxelSample>> byCell = samplesByNetwork(partition, cells, fresh, [&](size_t i) {
                 return positionInCell(partition, result.partition, adaptive, grid, fresh[i].position, cells[i]);
             });

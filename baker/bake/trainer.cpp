@@ -7,6 +7,8 @@
 #include <memory>
 #include <numeric>
 
+#include <tbb/parallel_for.h>
+
 #include "baker/nn/schedule.h"
 #include "baker/render/sampler.h"
 
@@ -37,15 +39,26 @@ std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& pa
     std::vector<std::vector<VoxelSample>> out(size_t(partition.cells));
     std::vector<uint8_t> occupied(size_t(partition.cells), 0);
     for (uint32_t c : cellOfSample) occupied[c] = 1;
+    // Every sample's supports in parallel, then gathered per network in the samples' order.
+    struct Found {
+        int count;
+        eval::Support sup[eval::kMaxSupports];
+    };
+    std::vector<Found> found(samples.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, samples.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const float p[3] = {samples[i].position.x, samples[i].position.y, samples[i].position.z};
+            Found& f = found[i];
+            f.count = partition.supports(p, f.sup);
+            f.count = eval::keepOccupied(f.sup, f.count, [&](int64_t v) { return occupied[size_t(v)] != 0; });
+        }
+    });
     for (size_t i = 0; i < samples.size(); ++i) {
         const TrainingSample& s = samples[i];
-        const float p[3] = {s.position.x, s.position.y, s.position.z};
-        eval::Support sup[eval::kMaxSupports];
-        int count = partition.supports(p, sup);
-        count = eval::keepOccupied(sup, count, [&](int64_t v) { return occupied[size_t(v)] != 0; });
-        for (int k = 0; k < count; ++k)
-            out[size_t(sup[k].voxel)].push_back({&s, sup[k].weight, glm::vec3(sup[k].local[0], sup[k].local[1], sup[k].local[2])});
-        if (count == 0)  // rounded just outside the box (training_samples.cpp keeps its piece's voxel): its own cell
+        const Found& f = found[i];
+        for (int k = 0; k < f.count; ++k)
+            out[size_t(f.sup[k].voxel)].push_back({&s, f.sup[k].weight, glm::vec3(f.sup[k].local[0], f.sup[k].local[1], f.sup[k].local[2])});
+        if (f.count == 0)  // rounded just outside the box (training_samples.cpp keeps its piece's voxel): its own cell
             out[cellOfSample[i]].push_back({&s, 1.0f, ownPosition(i)});
     }
     return out;

@@ -55,14 +55,16 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     for (const SurfacePiece& p : pieces.pieces()) cdf.push_back(acc += p.area);
     uint32_t pointStream = hashCombine(settings.seed, kPointStream);
     std::vector<uint32_t> count(grid.voxelCount(), 0);
-    for (uint32_t k = 0; k < settings.points; ++k) {
-        const uint32_t i = settings.firstPoint + k;
-        Sampler s(pointStream, i);
-        float uPiece = s.get1D();
-        PointRequest r{uint32_t(pickByCdf(cdf, uPiece)), s.get2D(), s.get2D(), hashCombine(hashCombine(settings.seed, kPathStream), i)};
-        ++count[pieces.pieces()[r.piece].voxel];
-        requests.push_back(r);
-    }
+    requests.resize(settings.points);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, settings.points, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
+        for (uint32_t k = range.begin(); k != range.end(); ++k) {
+            const uint32_t i = settings.firstPoint + k;
+            Sampler s(pointStream, i);
+            float uPiece = s.get1D();
+            requests[k] = {uint32_t(pickByCdf(cdf, uPiece)), s.get2D(), s.get2D(), hashCombine(hashCombine(settings.seed, kPathStream), i)};
+        }
+    });
+    for (const PointRequest& r : requests) ++count[pieces.pieces()[r.piece].voxel];
     stats.points = settings.points;
     for (uint32_t v = 0; v < grid.voxelCount(); ++v) {
         const std::vector<uint32_t>& own = pieces.piecesOf(v);
