@@ -320,6 +320,10 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
 
 }  // namespace
 
+// Optimizer steps of one network in one round of integral training at the full rate (about twice what a network's
+// 2,000 samples x 4 passes take in batches of 32).
+constexpr double kRoundSteps = 512.0;
+
 VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const TrainSettings& settings, uint32_t generation, int epochs,
                                float learningRate, float averageDecay, NetworkState& state) {
     auto start = std::chrono::steady_clock::now();
@@ -335,10 +339,18 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     std::vector<float> average = result.params;
     SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
     std::vector<size_t> perm = d.train;
+    // A round of more steps than kRoundSteps takes smaller ones and averages over more of them, in proportion:
+    // what a network moves per round (and the noise it keeps) does not grow with its samples. (Measured on the
+    // glossy box: 400,000 points per round at the full rate drifted, relMSE 0.0117 after 16 rounds and 0.063
+    // after 32; at a fifth of the rate 0.0060.)
+    const size_t batch = size_t(std::clamp(settings.batchSize, 1, MlpBatchWorkspace::kMaxBatch));
+    const double steps = double(epochs) * double((perm.size() + batch - 1) / batch);
+    const float scale = steps > kRoundSteps ? float(kRoundSteps / steps) : 1.0f;
+    const float rate = learningRate * scale, decay = 1.0f - (1.0f - averageDecay) * scale;
     for (int epoch = 0; epoch < epochs; ++epoch) {
         for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
-        trainEpoch(mlp, *state.adam, bws, d, perm, settings, invScale, learningRate, result.weightDecay,
-                   averageDecay > 0.0f ? &average : nullptr, averageDecay);
+        trainEpoch(mlp, *state.adam, bws, d, perm, settings, invScale, rate, result.weightDecay, averageDecay > 0.0f ? &average : nullptr,
+                   decay);
     }
     // Kept only if finite; a network that diverged keeps what it had (and says so).
     const bool finite = mlp.allFinite() && std::all_of(average.begin(), average.end(), [](float v) { return std::isfinite(v); });

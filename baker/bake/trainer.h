@@ -101,7 +101,8 @@ struct NetworkState {
 };
 
 // Trains state's network further, `epochs` passes over `samples` (a new generation's, whose targets came from
-// the networks as they were) at a constant learning rate, from where it stood. With averageDecay > 0 the
+// the networks as they were) at a constant learning rate (scaled down in proportion when the round has more
+// than 512 steps, so that what a round moves does not grow with the samples), from where it stood. With averageDecay > 0 the
 // network kept is an exponential moving average of the optimizer's parameters over its steps (decay per step,
 // continuing across generations): the noise of one-bounce targets averages out. The held-out split is salted
 // with the generation. The gradient stops at the targets (semi-gradient). Returns state.result, updated:

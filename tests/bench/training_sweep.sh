@@ -31,7 +31,7 @@ Z=$ROOT/../shared/scenes-external/Sauerbraten_zdm2/zdm2.glb
 ZV="--look-from -25,25,35 --look-at 10,-8,0 --fov 60"
 for scene in $SCENES; do
   view=""; [ $scene = Z ] && view=$ZV
-  for pp in "10000 512" "2500 32" "5000 32" "10000 32" "10000 128" "20000 128" "40000 64"; do
+  for pp in "10000 512" "2500 32" "5000 32" "10000 32" "20000 32" "40000 32" "10000 128" "20000 128" "40000 64"; do
     set -- $pp
     run ${scene}_mc_$1x$2 ${!scene} "$view" --max-depth 0 --points $1 --paths $2
   done

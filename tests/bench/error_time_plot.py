@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Draws relMSE against bake seconds (log-log SVG) from tests/bench/training_sweep.sh's sweep.txt, per scene
+Monte Carlo targets (every points x paths) and training within the integral equation (1 to 32 rounds), and
+prints the markdown table: each bake, and per scene the time each method needs to reach the error of the
+paper's settings (10,000 x 512), interpolated on its lower envelope (log-log, between the nearest bakes).
+Usage: error_time_plot.py sweep.txt out.svg"""
+import math, re, sys
+
+rows = {}
+for line in open(sys.argv[1]):
+    m = re.match(r"(\w+?)_(mc|int)_(\S+) seconds=([0-9.e-]+) neural relMSE ([0-9.e-]+)", line)
+    if m:
+        scene, kind, tag, t, e = m.groups()
+        rows.setdefault(scene, []).append((kind, tag, float(t), float(e)))
+
+names = {"CB": "Cornell box", "GB": "glossy Cornell box", "Z": "zdm2 (sky)"}
+colours = {"CB": "#1f77b4", "GB": "#d62728", "Z": "#2ca02c"}
+
+
+def envelope(points):
+    """The lower envelope: bakes no faster bake beats in error, sorted by time."""
+    env, best = [], float("inf")
+    for t, e in sorted(points):
+        if e < best:
+            env.append((t, e))
+            best = e
+    return env
+
+
+def time_to_reach(points, target):
+    env = envelope(points)
+    for k, (t, e) in enumerate(env):
+        if e <= target:
+            if k == 0:
+                return t, "<="
+            (t0, e0) = env[k - 1]
+            f = (math.log(target) - math.log(e0)) / (math.log(e) - math.log(e0))
+            return math.exp(math.log(t0) + f * (math.log(t) - math.log(t0))), ""
+    return None, ""
+
+
+series = []
+table = ["| scene | method | bake | seconds | relMSE |", "|---|---|---|---|---|"]
+summary = ["| scene | paper's settings (10,000 x 512): relMSE, seconds | Monte Carlo: seconds to reach it | integral: seconds to reach it | ratio |",
+           "|---|---|---|---|---|"]
+for scene, r in rows.items():
+    mc = [(t, e) for k, _, t, e in r if k == "mc"]
+    it = sorted(((int(tag[1:]), t, e) for k, tag, t, e in r if k == "int"))
+    series += [(names.get(scene, scene) + ": Monte Carlo", colours.get(scene, "#333"), sorted(mc), "", True),
+               (names.get(scene, scene) + ": integral", colours.get(scene, "#333"), [(t, e) for _, t, e in it], "6,4", False)]
+    for k, tag, t, e in sorted(r, key=lambda x: (x[0] != "mc", x[2])):
+        label = tag.replace("x", " points x ") + " paths" if k == "mc" else tag[1:] + " rounds"
+        table.append(f"| {names.get(scene, scene)} | {'Monte Carlo' if k == 'mc' else 'integral'} | {label} | {t:.2f} | {e:.4g} |")
+    paper = [(t, e) for k, tag, t, e in r if k == "mc" and tag == "10000x512"]
+    if paper:
+        pt, pe = paper[0]
+        tm, fm = time_to_reach(mc, pe)
+        ti, fi = time_to_reach([(t, e) for _, t, e in it], pe)
+        ratio = f"**{tm / ti:.1f}x**" if tm and ti else "not reached"
+        summary.append(f"| {names.get(scene, scene)} | {pe:.4g}, {pt:.2f} s | {fm}{tm:.2f} | "
+                       f"{(fi + format(ti, '.2f')) if ti else 'not reached'} | {ratio} |")
+
+pts = [p for _, _, s, _, _ in series for p in s]
+x0, x1 = math.floor(math.log10(min(t for t, _ in pts))), math.ceil(math.log10(max(t for t, _ in pts)))
+y0, y1 = math.floor(math.log10(min(e for _, e in pts))), math.ceil(math.log10(max(e for _, e in pts)))
+W, H, L, R, T, B = 760, 480, 70, 230, 36, 52
+pw, ph = W - L - R, H - T - B
+X = lambda v: L + (math.log10(v) - x0) / (x1 - x0) * pw
+Y = lambda v: T + (1 - (math.log10(v) - y0) / (y1 - y0)) * ph
+o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">',
+     '<rect width="100%" height="100%" fill="white"/>',
+     f'<text x="{L + pw / 2}" y="20" text-anchor="middle" font-size="14">Error against bake time (2 cores, 256 px validation)</text>']
+for e in range(x0, x1 + 1):
+    x = X(10 ** e)
+    o.append(f'<line x1="{x:.1f}" y1="{T}" x2="{x:.1f}" y2="{T + ph}" stroke="#ddd"/><text x="{x:.1f}" y="{T + ph + 16}" text-anchor="middle">{10 ** e:g} s</text>')
+for e in range(y0, y1 + 1):
+    y = Y(10 ** e)
+    o.append(f'<line x1="{L}" y1="{y:.1f}" x2="{L + pw}" y2="{y:.1f}" stroke="#ddd"/><text x="{L - 6}" y="{y + 4:.1f}" text-anchor="end">1e{e}</text>')
+o.append(f'<text x="{L + pw / 2}" y="{H - 10}" text-anchor="middle">bake seconds (sum of the phases)</text>')
+o.append(f'<text x="16" y="{T + ph / 2}" text-anchor="middle" transform="rotate(-90 16 {T + ph / 2})">relMSE against the reference</text>')
+for k, (name, colour, s, dash, scatter) in enumerate(series):
+    if not s:
+        continue
+    if scatter:  # Monte Carlo: every bake a point, the lower envelope a line
+        for t, e in s:
+            o.append(f'<circle cx="{X(t):.1f}" cy="{Y(e):.1f}" r="3.5" fill="none" stroke="{colour}"/>')
+        s = envelope(s)
+    else:
+        for t, e in s:
+            o.append(f'<circle cx="{X(t):.1f}" cy="{Y(e):.1f}" r="3" fill="{colour}"/>')
+    d = " ".join(f"{X(t):.1f},{Y(e):.1f}" for t, e in s)
+    o.append(f'<polyline points="{d}" fill="none" stroke="{colour}" stroke-width="2"' + (f' stroke-dasharray="{dash}"' if dash else "") + "/>")
+    ly = T + 10 + 18 * k
+    o.append(f'<line x1="{L + pw + 12}" y1="{ly}" x2="{L + pw + 40}" y2="{ly}" stroke="{colour}" stroke-width="2"' +
+             (f' stroke-dasharray="{dash}"' if dash else "") + f'/><text x="{L + pw + 46}" y="{ly + 4}">{name}</text>')
+o.append(f'<text x="{L + pw + 12}" y="{T + 20 + 18 * len(series)}" font-size="11">circles: Monte Carlo bakes;</text>')
+o.append(f'<text x="{L + pw + 12}" y="{T + 34 + 18 * len(series)}" font-size="11">line: their lower envelope</text>')
+o.append("</svg>")
+open(sys.argv[2], "w").write("\n".join(o) + "\n")
+print("\n".join(summary))
+print()
+print("\n".join(table))
