@@ -2,7 +2,10 @@
 """Draws relMSE against asset bytes (log-log SVG) from tests/bench/partition_sweep.sh's sweep.txt: per scene
 the uniform grids, the adaptive kd-tree at the same bytes, and the SH probes of equal bytes.
 Usage: error_bytes_plot.py sweep.txt out.svg"""
-import math, re, sys
+import math, os, re, sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import loglog_svg  # noqa: E402
 
 rows = {}
 for line in open(sys.argv[1]):
@@ -23,21 +26,7 @@ for scene, r in rows.items():
                (names.get(scene, scene) + ": adaptive kd-tree", colours.get(scene, "#333"), kd, "6,4"),
                (names.get(scene, scene) + ": SH probes", colours.get(scene, "#333"), sh, "1,4")]
 pts = [p for _, _, s, _ in series for p in s]
-x0, x1 = math.floor(math.log10(min(b for b, _ in pts))), math.ceil(math.log10(max(b for b, _ in pts)))
-y0, y1 = math.floor(math.log10(min(e for _, e in pts))), math.ceil(math.log10(max(e for _, e in pts)))
-W, H, L, R, T, B = 760, 480, 70, 250, 36, 52
-pw, ph = W - L - R, H - T - B
-X = lambda v: L + (math.log10(v) - x0) / (x1 - x0) * pw
-Y = lambda v: T + (1 - (math.log10(v) - y0) / (y1 - y0)) * ph
-o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">',
-     '<rect width="100%" height="100%" fill="white"/>',
-     f'<text x="{L + pw / 2}" y="20" text-anchor="middle" font-size="14">Error against bytes (256 px validation views)</text>']
-for e in range(x0, x1 + 1):
-    x = X(10 ** e)
-    o.append(f'<line x1="{x:.1f}" y1="{T}" x2="{x:.1f}" y2="{T + ph}" stroke="#ddd"/><text x="{x:.1f}" y="{T + ph + 16}" text-anchor="middle">1e{e}</text>')
-for e in range(y0, y1 + 1):
-    y = Y(10 ** e)
-    o.append(f'<line x1="{L}" y1="{y:.1f}" x2="{L + pw}" y2="{y:.1f}" stroke="#ddd"/><text x="{L - 6}" y="{y + 4:.1f}" text-anchor="end">1e{e}</text>')
+o, X, Y, L, T, pw, ph, H = loglog_svg.frame("Error against bytes (256 px validation views)", pts, 250)
 o.append(f'<rect x="{L}" y="{T}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>')
 o.append(f'<text x="{L + pw / 2}" y="{H - 12}" text-anchor="middle">asset bytes (SH probes: their coefficients)</text>')
 o.append(f'<text transform="translate(16,{T + ph / 2}) rotate(-90)" text-anchor="middle">relMSE against the reference</text>')

@@ -4,7 +4,10 @@ Monte Carlo targets (every points x paths) and training within the integral equa
 prints the markdown table: each bake, and per scene the time each method needs to reach the error of the
 paper's settings (10,000 x 512), interpolated on its lower envelope (log-log, between the nearest bakes).
 Usage: error_time_plot.py sweep.txt out.svg"""
-import math, re, sys
+import math, os, re, sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import loglog_svg  # noqa: E402
 
 rows = {}
 for line in open(sys.argv[1]):
@@ -61,21 +64,7 @@ for scene, r in rows.items():
                        f"{(fi + format(ti, '.2f')) if ti else 'not reached'} | {ratio} |")
 
 pts = [p for _, _, s, _, _ in series for p in s]
-x0, x1 = math.floor(math.log10(min(t for t, _ in pts))), math.ceil(math.log10(max(t for t, _ in pts)))
-y0, y1 = math.floor(math.log10(min(e for _, e in pts))), math.ceil(math.log10(max(e for _, e in pts)))
-W, H, L, R, T, B = 760, 480, 70, 230, 36, 52
-pw, ph = W - L - R, H - T - B
-X = lambda v: L + (math.log10(v) - x0) / (x1 - x0) * pw
-Y = lambda v: T + (1 - (math.log10(v) - y0) / (y1 - y0)) * ph
-o = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">',
-     '<rect width="100%" height="100%" fill="white"/>',
-     f'<text x="{L + pw / 2}" y="20" text-anchor="middle" font-size="14">Error against bake time (2 cores, 256 px validation)</text>']
-for e in range(x0, x1 + 1):
-    x = X(10 ** e)
-    o.append(f'<line x1="{x:.1f}" y1="{T}" x2="{x:.1f}" y2="{T + ph}" stroke="#ddd"/><text x="{x:.1f}" y="{T + ph + 16}" text-anchor="middle">{10 ** e:g} s</text>')
-for e in range(y0, y1 + 1):
-    y = Y(10 ** e)
-    o.append(f'<line x1="{L}" y1="{y:.1f}" x2="{L + pw}" y2="{y:.1f}" stroke="#ddd"/><text x="{L - 6}" y="{y + 4:.1f}" text-anchor="end">1e{e}</text>')
+o, X, Y, L, T, pw, ph, H = loglog_svg.frame("Error against bake time (2 cores, 256 px validation)", pts, 230, lambda e: f"{10 ** e:g} s")
 o.append(f'<text x="{L + pw / 2}" y="{H - 10}" text-anchor="middle">bake seconds (sum of the phases)</text>')
 o.append(f'<text x="16" y="{T + ph / 2}" text-anchor="middle" transform="rotate(-90 16 {T + ph / 2})">relMSE against the reference</text>')
 for k, (name, colour, s, dash, scatter) in enumerate(series):
