@@ -39,6 +39,13 @@ inline bool sameSideRule(const SurfaceInteraction& si, const Bsdf& bsdf, const g
 // Russian roulette starts after this many segments.
 constexpr int kRouletteStart = 3;
 
+// scatteredRadiance does not cut a path at a vertex whose reflection is a sharp lobe (metal or glass rougher
+// than nothing but smoother than this): what a small network draws worst would otherwise become every other
+// network's target. At most this many extra bounces, then it cuts wherever it is.
+constexpr float kSharpRoughness = 0.5f;
+constexpr int kMaxSharpExtension = 4;
+inline bool sharpLobe(const BsdfParams& b) { return b.roughness < kSharpRoughness && (b.metallic >= 0.5f || b.transmission >= 0.5f); }
+
 }  // namespace
 
 void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& origin, glm::vec3& direction,
@@ -137,7 +144,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
                 L += beta * si.emission * powerHeuristic(prevBsdfPdf, lightPdf);
             }
         }
-        if (cutDepth > 0 && depth == cutDepth) {
+        if (cutDepth > 0 && depth >= cutDepth && (depth >= cutDepth + kMaxSharpExtension || !sharpLobe(si.bsdf))) {
             // What this vertex scatters towards the previous one, from the tail (emission was counted above).
             glm::vec3 Ls = (*tail)(si);
             if (excludeEngineDrawn_) Ls += engineDrawnDirect(scene_, accel_, si);

@@ -100,7 +100,8 @@ public:
     // One estimate of the scattered radiance L(x, wo) - Le(x, wo) at si from `bounces` (>= 1) BSDF bounces with
     // next event estimation and MIS, the path cut at the vertex the last bounce reaches: its emission (MIS
     // weighted as usual) plus `tail` there (plus, for training targets with engine-drawn lights excluded, those
-    // lights' direct light there, which the tail does not hold). No Russian roulette before the cut.
+    // lights' direct light there, which the tail does not hold). A vertex with a sharp lobe (metal or glass of
+    // roughness below 0.5) is bounced through instead, up to 4 more bounces. No Russian roulette before the cut.
     glm::vec3 scatteredRadiance(const SurfaceInteraction& si, Sampler& sampler, int bounces, const ScatteredRadiance& tail,
                                 RayCounters& counters) const;
 
