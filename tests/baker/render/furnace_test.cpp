@@ -140,6 +140,47 @@ TEST(Furnace, ScatteredRadianceWithATailIsOneBounceOfIt) {
     }
 }
 
+// The cut is never at a vertex with a sharp lobe (metal or glass below roughness 0.5): there the path goes
+// on, up to 4 more bounces. In a furnace of smooth metal every vertex is sharp, so every tail comes after
+// exactly bounces + 4 extension rays; in a Lambertian one after exactly `bounces`.
+TEST(Furnace, ScatteredRadianceBouncesThroughSharpLobes) {
+    ThreadScope threads(1);
+    for (bool metal : {false, true}) {
+        Material m = diffuseEmitter(0.8f, glm::vec3(1.0f));
+        if (metal) {
+            m.metallic = 1.0f;
+            m.roughness = 0.3f;
+        }
+        Scene scene = test::makeSphereFurnace(m);
+        Accel accel(scene);
+        LightSampler lights(scene);
+        PathTracer tracer(scene, accel, lights);
+        for (int bounces : {1, 2}) {
+            uint64_t tails = 0;
+            const ScatteredRadiance tail = [&](const SurfaceInteraction&) {
+                ++tails;
+                return glm::vec3(1.0f);
+            };
+            RayCounters counters;
+            const int n = 2000;
+            for (int i = 0; i < n; ++i) {
+                Sampler sampler(0xc0ffeeu, uint32_t(i));
+                const glm::vec2 u = sampler.get2D();
+                const float z = 1.0f - 2.0f * u.x, r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 6.2831853f * u.y;
+                Hit hit = accel.intersect(glm::vec3(0.0f), glm::vec3(r * std::cos(phi), r * std::sin(phi), z));
+                ASSERT_TRUE(hit.valid());
+                const uint64_t before = counters.extension, tailsBefore = tails;
+                tracer.scatteredRadiance(makeInteraction(scene, hit, glm::vec3(r * std::cos(phi), r * std::sin(phi), z)), sampler, bounces,
+                                         tail, counters);
+                if (tails > tailsBefore) {
+                    EXPECT_EQ(counters.extension - before, uint64_t(bounces + (metal ? 4 : 0))) << i;
+                }
+            }
+            EXPECT_GT(tails, uint64_t(n / 2)) << (metal ? "metal" : "diffuse") << ", " << bounces << " bounce(s)";
+        }
+    }
+}
+
 TEST(Furnace, GlossyEnclosureConservesEnergy) {
     // A white rough metal enclosure (alpha 1): the single-scattering lobe loses energy, so the unbounded
     // radiance lies between the one-bounce value 1 + E(n) = 2 - ln 2 and the geometric series with the
