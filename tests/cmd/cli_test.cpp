@@ -156,6 +156,34 @@ TEST(CliBake, BakesAndInfoDescribesTheAsset) {
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
 }
 
+// Training within the integral equation: every round's asset written and loadable, the rounds in --stats, the
+// method in the asset's metadata.
+TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
+    std::string dir = test::temporaryDirectory();
+    RunResult r = run("bake " + cornell() + " -o '" + dir + "/a.nrad' --training integral --points 800 --generations 2 --generation-points 3000 "
+                      "--save-generations '" + dir + "/round' --stats '" + dir + "/stats.json' -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("a Monte Carlo start ("), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("and 2 rounds of"), std::string::npos) << r.output;
+    for (const char* name : {"/round-g0.nrad", "/round-g1.nrad", "/round-g2.nrad"}) {
+        RunResult info = run("info '" + dir + name + "'");
+        EXPECT_EQ(info.exitCode, 0) << name << ": " << info.output;
+    }
+    // The last round is the asset.
+    std::ifstream a(dir + "/a.nrad", std::ios::binary), b(dir + "/round-g2.nrad", std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(a), {}), std::string(std::istreambuf_iterator<char>(b), {}));
+    std::ifstream f(dir + "/stats.json");
+    nlohmann::json stats = nlohmann::json::parse(f);
+    EXPECT_EQ(stats["training"]["method"], "integral");
+    ASSERT_EQ(stats["training"]["generations"].size(), 3u);
+    EXPECT_GE(stats["training"]["generations"][2]["samples"].get<size_t>(), 3000u);
+    EXPECT_GT(stats["training"]["generations"][2]["elapsed_seconds"].get<double>(),
+              stats["training"]["generations"][1]["elapsed_seconds"].get<double>());
+    RunResult info = run("info '" + dir + "/a.nrad'");
+    EXPECT_NE(info.output.find("\"method\":\"integral\""), std::string::npos) << info.output;
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 5);  // no temporary files
+}
+
 TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
     std::string dir = test::temporaryDirectory();
     std::ofstream(dir + "/bake.json") << R"({"grid": "2x1x1", "points": 300, "paths": 2, "epochs": 10, "encoding": "fp32"})";
@@ -177,7 +205,10 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
     for (const char* flags : {"--grid 0", "--grid 2x2", "--grid 3x3x999", "--hidden 0", "--hidden 9,x", "--loss huber",
                               "--encoding fp8", "--points 0", "--epochs 0", "--learning-rate -1", "--no-such-flag",
                               "--budget 12Q", "--budget -5", "--budget 0", "--budget 300", "--budget 8K --levels 11",
-                              "--budget 8K --min-leaf-samples 2"}) {
+                              "--budget 8K --min-leaf-samples 2", "--training td", "--training integral --bounces 0",
+                              "--training integral --bounces 9", "--training integral --generation-epochs 0",
+                              "--training integral --generation-lr 0.01", "--training integral --generation-lr 0.01,-1",
+                              "--training integral --average-decay 1", "--training integral --start-epochs 0"}) {
         RunResult r = run("bake " + cornell() + out + " " + flags);
         EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
     }
