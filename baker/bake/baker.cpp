@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -199,6 +200,11 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         // it), so it depends on nothing that refining changes.
         BakeResult none;
         none.sampleCount = result.sampleCount;
+        if (settings.training == TrainingMethod::Integral) {
+            // The rounds add samples and set their points by the networks: reserve their largest numbers.
+            none.sampleCount = std::numeric_limits<uint32_t>::max();
+            none.voxels.resize(2000);  // roundPoints' cap
+        }
         reserve = {assetMetadata(scene, settings, none).size(), 0};
         if (!settings.metadata) reserve = {};
         result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve,
