@@ -76,19 +76,24 @@ void Bsdf::lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) 
     trans = p_.transmission * base;
 }
 
-float Bsdf::specularProbability(float cosThetaO) const {
+void Bsdf::lobeProbabilities(float cosThetaO, float& pSpec, float& pTrans) const {
     float spec, diff, trans;
     lobeWeights(cosThetaO, spec, diff, trans);
-    float sum = spec + diff + trans;
-    if (spec <= 0.0f) return 0.0f;
-    return sum > spec ? spec / sum : 1.0f;
+    const float sum = spec + diff + trans;
+    pSpec = spec <= 0.0f ? 0.0f : (sum > spec ? spec / sum : 1.0f);
+    pTrans = trans > 0.0f && sum > 0.0f ? trans / sum : 0.0f;
+}
+
+float Bsdf::specularProbability(float cosThetaO) const {
+    float pSpec, pTrans;
+    lobeProbabilities(cosThetaO, pSpec, pTrans);
+    return pSpec;
 }
 
 float Bsdf::transmissionProbability(float cosThetaO) const {
-    float spec, diff, trans;
-    lobeWeights(cosThetaO, spec, diff, trans);
-    float sum = spec + diff + trans;
-    return trans > 0.0f && sum > 0.0f ? trans / sum : 0.0f;
+    float pSpec, pTrans;
+    lobeProbabilities(cosThetaO, pSpec, pTrans);
+    return pTrans;
 }
 
 glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
@@ -131,7 +136,13 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
 
 float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
     if (wo.z <= 0.0f || wiIn.z == 0.0f) return 0.0f;
-    const float pTrans = transmissionProbability(wo.z);
+    float pSpec, pTrans;
+    lobeProbabilities(wo.z, pSpec, pTrans);
+    return pdfLocal(wo, wiIn, pSpec, pTrans);
+}
+
+float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn, float pSpec, float pTrans) const {
+    if (wo.z <= 0.0f || wiIn.z == 0.0f) return 0.0f;
     if (wiIn.z < 0.0f) {
         if (!(pTrans > 0.0f)) return 0.0f;
         const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
@@ -141,7 +152,6 @@ float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
         return pTrans * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
     }
     const glm::vec3& wi = wiIn;
-    float pSpec = specularProbability(wo.z);
     float pdf = (1.0f - pSpec - pTrans) * wi.z / kPi;
     if (pSpec > 0.0f) {
         glm::vec3 h = glm::normalize(wo + wi);
@@ -167,7 +177,8 @@ BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& 
     glm::vec3 wo = frame_.toLocal(woWorld);
     BsdfSample s;
     if (wo.z <= 0.0f) return s;
-    float pSpec = specularProbability(wo.z), pTrans = transmissionProbability(wo.z);
+    float pSpec, pTrans;
+    lobeProbabilities(wo.z, pSpec, pTrans);
     glm::vec3 wi;
     bool through = false;
     if (uLobe < pSpec) {
@@ -196,7 +207,7 @@ BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& 
     }
     if (wi.z <= 0.0f) return s;
     if (through) wi.z = -wi.z;  // mirrored through the sheet
-    s.pdf = pdfLocal(wo, wi);
+    s.pdf = pdfLocal(wo, wi, pSpec, pTrans);
     if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf)) {
         s.pdf = 0.0f;
         return s;

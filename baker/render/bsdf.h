@@ -66,6 +66,9 @@ public:
 
 private:
     void lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) const;
+    // specularProbability and transmissionProbability from one lobeWeights.
+    void lobeProbabilities(float cosThetaO, float& pSpec, float& pTrans) const;
+    float pdfLocal(const glm::vec3& wo, const glm::vec3& wi, float pSpec, float pTrans) const;
     glm::vec3 evalLocal(const glm::vec3& wo, const glm::vec3& wi) const;
     float pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const;
 
