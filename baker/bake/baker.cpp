@@ -265,8 +265,8 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     };
 
     if (settings.training == TrainingMethod::Integral) {
-        // Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are one
-        // bounce with the networks as they stood for the rest of the path, each network continuing from
+        // Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are a
+        // bounce or two with the networks as they stood for the rest of the path, each network continuing from
         // where it was. Targets of a round come from the networks before it (frozen while it is sampled), and
         // every network trains on its own samples, so the result does not depend on the threads.
         const IntegralSettings& in = settings.integral;
