@@ -404,6 +404,17 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
             const nlohmann::json g = bake.value("grid", nlohmann::json());  // a kd-tree's lattice is not the sampling grid
             if (g.is_array() && g.size() == 3) dims = glm::uvec3(g[0].get<uint32_t>(), g[1].get<uint32_t>(), g[2].get<uint32_t>());
             r.baselineSamplesNote = "the bake's own settings, from the asset's metadata";
+            const nlohmann::json training = bake.value("training", nlohmann::json());
+            if (training.is_object() && training.value("method", std::string()) == "integral") {
+                // Trained within the integral equation: its own samples are one-bounce targets against its
+                // networks, of no use to probes, and its start's few paths would handicap them. The probes get
+                // what a Monte Carlo bake at the defaults would have given them.
+                const SampleSettings defaults;
+                ss.points = defaults.points;
+                ss.paths = defaults.paths;
+                ss.maxDepth = 0;
+                r.baselineSamplesNote = "Monte Carlo samples at the bake defaults, unbounded (the asset was trained within the integral equation)";
+            }
         } else {
             r.baselineSamplesNote = "default bake settings (the asset has no metadata)";
         }

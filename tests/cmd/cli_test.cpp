@@ -182,6 +182,15 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     RunResult info = run("info '" + dir + "/a.nrad'");
     EXPECT_NE(info.output.find("\"method\":\"integral\""), std::string::npos) << info.output;
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 5);  // no temporary files
+    // Its SH-probe baseline is fitted to Monte Carlo samples at the bake defaults (its own targets are one
+    // bounce against its networks, its start's four paths would handicap the probes).
+    r = run("validate " + cornell() + " '" + dir + "/a.nrad' -o '" + dir + "/report' --width 16 --reference-spp 4 --curve-max-spp 1 "
+            "--max-depth 0 --no-cache -q");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::ifstream rj(dir + "/report/report.json");
+    nlohmann::json report = nlohmann::json::parse(rj);
+    EXPECT_NE(report["baseline"]["training_settings"].get<std::string>().find("integral equation"), std::string::npos);
+    EXPECT_GE(report["baseline"]["training_samples"].get<size_t>(), 160000u);
 }
 
 TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
