@@ -65,16 +65,12 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
         return out;
     };
 }
-// The cell of a point of a sample (inside the box up to rounding: clamped into it).
+// The cell of a sample's point (inside the box up to rounding: clamped into it, where treeLeaf always finds one).
 uint32_t cellOfPoint(const eval::Partition& partition, const glm::vec3& p) {
     float q[3];
-    for (int k = 0; k < 3; ++k) {
-        const float t = std::clamp(eval::gridCoordinate(p[k], partition.grid.lower[k], partition.factor[k]), 0.0f,
-                                   std::nextafter(float(partition.grid.dims[k]), 0.0f));
-        q[k] = partition.grid.lower[k] + t / partition.factor[k];
-    }
+    for (int k = 0; k < 3; ++k) q[k] = std::clamp(p[k], partition.grid.lower[k], partition.grid.upper[k]);
     const int64_t c = partition.cellOf(q);
-    return c >= 0 ? uint32_t(c) : 0u;
+    return c >= 0 ? uint32_t(c) : 0u;  // only for a non-finite point, which no sample has
 }
 
 // The position input of a sample in its own cell when it lies just outside the box (samplesByNetwork).

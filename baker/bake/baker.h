@@ -18,14 +18,14 @@ namespace nrad {
 // How the networks' targets are made (paper Sec. 3 and 5).
 enum class TrainingMethod {
     MonteCarlo,  // each sample's target from `paths` full paths (SampleSettings)
-    Integral,  // within the integral equation: one bounce, the networks themselves standing in for the rest
+    Integral,  // within the integral equation: a bounce or two, the networks themselves standing in for the rest
 };
 const char* trainingMethodName(TrainingMethod method);
 bool parseTrainingMethod(const std::string& name, TrainingMethod& method);
 
 // Training within the integral equation: a Monte Carlo start (the usual bake, SampleSettings' points and
-// paths, few of them, while the networks know nothing), then `generations` rounds, each of fresh points continuing the
-// quasi-Monte Carlo sequence, whose targets are `bounces` bounce(s) of next event estimation and BSDF
+// paths, few of them, while the networks know nothing), then `generations` rounds, each of fresh points
+// continuing the quasi-Monte Carlo sequence, whose targets are `bounces` bounce(s) of next event estimation and BSDF
 // sampling with the networks as they stood after the previous round for the rest of the path
 // (NetworkField), each sample used for `epochs` passes and then dropped; the learning rate falls
 // geometrically from `learningRate` to `finalLearningRate` over the rounds.

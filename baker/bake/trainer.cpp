@@ -134,8 +134,6 @@ PreparedSamples prepareSamples(uint32_t voxel, const std::vector<VoxelSample>& e
     return d;
 }
 
-float normalizedTarget(const TrainSettings& settings, float invScale, float target) { return lossTarget(settings.loss, invScale, target); }
-
 // One pass over `perm` in mini-batches (batch-major kernels): the loss's gradient, averaged over the batch, plus
 // an L2 penalty of weightDecay / (training samples) on every parameter but the output biases, one Adam step
 // per batch; average (if given): after every step, average = decay average + (1 - decay) parameters.
@@ -157,8 +155,8 @@ void trainEpoch(Mlp& mlp, Adam& adam, MlpBatchWorkspace& ws, const PreparedSampl
             const size_t i = perm[b + size_t(k)];
             float y[3], dy[3];
             for (int c = 0; c < nOut; ++c) y[c] = ws.value(L, c)[k];
-            const float t[3] = {normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
-                                normalizedTarget(settings, invScale, d.targets[i][2])};
+            const float t[3] = {lossTarget(settings.loss, invScale, d.targets[i][0]), lossTarget(settings.loss, invScale, d.targets[i][1]),
+                                lossTarget(settings.loss, invScale, d.targets[i][2])};
             const float w[3] = {d.weights[i][0], d.weights[i][1], d.weights[i][2]};
             regressionGradient(settings.loss, y, t, w, dy);
             for (int c = 0; c < nOut; ++c) ws.delta(L, c)[k] = dy[c];
@@ -176,14 +174,22 @@ void trainEpoch(Mlp& mlp, Adam& adam, MlpBatchWorkspace& ws, const PreparedSampl
 
 // Weighted relMSE over `set` as shaded: the prediction multiplied back by the reflectance, against the
 // scattered radiance, weighted as the runtime weighs this network there.
-double shadedError(const Mlp& mlp, MlpWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& set,
+double shadedError(const Mlp& mlp, MlpBatchWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& set,
                    const TrainSettings& settings, format::OutputTransform transform, float scale) {
+    // In batches through the mini-batch kernels (the same outputs as the per-sample pass, bit for bit).
+    const size_t nIn = size_t(settings.shape.inputs), L = mlp.layers(), B = MlpBatchWorkspace::kMaxBatch;
+    float x[MlpBatchWorkspace::kMaxBatch * eval::kInputs];
     double e = 0.0, w = 0.0;
-    float y[8];
-    for (size_t i : set) {
-        mlp.forward(&d.inputs[i * size_t(settings.shape.inputs)], y, ws);
-        e += double(d.blend(i)) * relativeSquaredError(d.modulation[i] * decodeOutput(transform, scale, y), d.sample(i).radiance);
-        w += double(d.blend(i));
+    for (size_t b = 0; b < set.size(); b += B) {
+        const size_t count = std::min(B, set.size() - b);
+        for (size_t k = 0; k < count; ++k) std::copy_n(&d.inputs[set[b + k] * nIn], nIn, &x[k * nIn]);
+        mlp.forwardBatch(x, int(count), ws);
+        for (size_t k = 0; k < count; ++k) {
+            const size_t i = set[b + k];
+            const float y[3] = {ws.value(L, 0)[k], ws.value(L, 1)[k], ws.value(L, 2)[k]};
+            e += double(d.blend(i)) * relativeSquaredError(d.modulation[i] * decodeOutput(transform, scale, y), d.sample(i).radiance);
+            w += double(d.blend(i));
+        }
     }
     return w > 0.0 ? e / w : 0.0;
 }
@@ -217,7 +223,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     MlpWorkspace ws;
     MlpBatchWorkspace bws;
     std::vector<float> y(static_cast<size_t>(nOut));
-    auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, ws, d, set, settings, result.transform, result.scale); };
+    auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, bws, d, set, settings, result.transform, result.scale); };
 
     double bestOverall = std::numeric_limits<double>::infinity();
     std::vector<float> bestOverallParams;
@@ -271,8 +277,8 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
                 for (int u = 0; u < width; ++u)
                     if (ws.activations(1)[u] > 0.0f) alive[size_t(u)] = true;
                 glm::dvec3 p(y[0], y[1], y[2]);
-                glm::dvec3 t(normalizedTarget(settings, invScale, d.targets[i][0]), normalizedTarget(settings, invScale, d.targets[i][1]),
-                             normalizedTarget(settings, invScale, d.targets[i][2]));
+                glm::dvec3 t(lossTarget(settings.loss, invScale, d.targets[i][0]), lossTarget(settings.loss, invScale, d.targets[i][1]),
+                             lossTarget(settings.loss, invScale, d.targets[i][2]));
                 mean += p;
                 mean2 += p * p;
                 tmean += t;
@@ -305,7 +311,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         for (size_t i : train) mean += double(d.blend(i)) * glm::dvec3(d.targets[i]);
         if (weightSum > 0.0) mean /= weightSum;
         size_t outBias = mlp.parameters().size() - size_t(nOut);
-        for (int c = 0; c < nOut; ++c) mlp.parameters()[outBias + size_t(c)] = normalizedTarget(settings, invScale, float(mean[c]));
+        for (int c = 0; c < nOut; ++c) mlp.parameters()[outBias + size_t(c)] = lossTarget(settings.loss, invScale, float(mean[c]));
         bestOverallParams = mlp.parameters();
     }
     mlp.parameters() = bestOverallParams;
@@ -333,7 +339,6 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     Mlp mlp(settings.shape);
     if (state.params.empty()) state.params = result.params;
     mlp.parameters() = state.params;
-    MlpWorkspace ws;
     MlpBatchWorkspace bws;
     if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
     std::vector<float> average = result.params;
@@ -365,8 +370,8 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     mlp.parameters() = result.params;
     result.trainCount += d.train.size();
     result.heldOutCount = d.heldOut.size();
-    result.heldOutRelMse = shadedError(mlp, ws, d, d.evalSet(), settings, result.transform, result.scale);
-    result.trainRelMse = shadedError(mlp, ws, d, d.train, settings, result.transform, result.scale);
+    result.heldOutRelMse = shadedError(mlp, bws, d, d.evalSet(), settings, result.transform, result.scale);
+    result.trainRelMse = shadedError(mlp, bws, d, d.train, settings, result.transform, result.scale);
     result.epochs += epochs;
     result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     result.curve.push_back({int(generation), result.seconds, result.heldOutRelMse});

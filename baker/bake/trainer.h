@@ -1,7 +1,8 @@
 // Trainer: fits one voxel's network to its training samples, a short loop over baker/nn's pieces (network,
-// loss, optimizer, schedule): held-out split for early stopping and the reported error, deterministic initialisation and
-// sample order from the seed, HDR-aware losses, detection of failed trainings (non-finite weights, dead
-// ReLUs, constant output) with re-initialisation, and a constant fallback so nothing invalid is ever kept.
+// loss, optimizer, schedule): held-out split for early stopping and the reported error, deterministic
+// initialisation and sample order from the seed, HDR-aware losses, detection of failed trainings (non-finite
+// weights, dead ReLUs, constant output) with re-initialisation, and a constant fallback so nothing invalid is
+// ever kept. continueVoxel: the same pieces for the rounds of training within the integral equation.
 #pragma once
 
 #include <cstdint>
@@ -101,12 +102,12 @@ struct NetworkState {
 };
 
 // Trains state's network further, `epochs` passes over `samples` (a new generation's, whose targets came from
-// the networks as they were) at a constant learning rate (scaled down in proportion when the round has more
-// than 512 steps, so that what a round moves does not grow with the samples), from where it stood. With averageDecay > 0 the
-// network kept is an exponential moving average of the optimizer's parameters over its steps (decay per step,
-// continuing across generations): the noise of one-bounce targets averages out. The held-out split is salted
-// with the generation. The gradient stops at the targets (semi-gradient). Returns state.result, updated:
-// its errors are this generation's, against its (noisy) targets.
+// the networks as they were) from where it stood, at a constant learning rate (scaled down in proportion when
+// the round has more than 512 steps, so that what a round moves does not grow with the samples). With
+// averageDecay > 0 the network kept is an exponential moving average of the optimizer's parameters over its
+// steps (decay per step, continuing across generations): the noise of one-bounce targets averages out. The
+// held-out split is salted with the generation. The gradient stops at the targets (semi-gradient). Returns
+// state.result, updated: its errors are this generation's, against its (noisy) targets.
 VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& samples, const TrainSettings& settings, uint32_t generation, int epochs,
                                float learningRate, float averageDecay, NetworkState& state);
 // The same for samples inside the voxel, weight 1 each.

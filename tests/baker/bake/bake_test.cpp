@@ -20,6 +20,15 @@
 namespace nrad {
 namespace {
 
+// A sharp directional light travelling along `direction` (normalised) with `intensity`.
+PunctualLight directionalSun(const glm::vec3& direction, const glm::vec3& intensity) {
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.direction = glm::normalize(direction);
+    sun.intensity = intensity;
+    return sun;
+}
+
 BakeSettings smallSettings() {
     BakeSettings s;
     s.grid = glm::uvec3(5);
@@ -383,11 +392,8 @@ namespace {
 // engine-drawn sun's direct light exactly, with a shadow ray) gives the closed form (a / pi) E cos.
 TEST(Bake, EngineDrawnSunLeavesOnlyIndirectLightInTheAsset) {
     Scene scene = test::makeLitPlane(0.5f, 1.0f);
-    PunctualLight sun;
-    sun.type = PunctualLight::Type::Directional;
+    PunctualLight sun = directionalSun(-glm::vec3(0.3f, 0.2f, 1.0f), glm::vec3(2.0f, 1.0f, 0.5f));
     sun.name = "sun";
-    sun.direction = -glm::normalize(glm::vec3(0.3f, 0.2f, 1.0f));
-    sun.intensity = glm::vec3(2.0f, 1.0f, 0.5f);
     sun.runtimeDirect = true;
     scene.lights.push_back(sun);
     scene.updateBounds();
@@ -481,10 +487,7 @@ TEST(Bake, IntegralTrainingIsByteIdenticalForOneAndTwoThreads) {
 // and with each other within 1%.
 TEST(Bake, IntegralAndMonteCarloTrainingAgreeOnOneBounceOfLight) {
     Scene scene = test::makeLitPlane(0.5f, 1.0f);
-    PunctualLight sun;
-    sun.type = PunctualLight::Type::Directional;
-    sun.direction = -glm::normalize(glm::vec3(0.3f, 0.2f, 1.0f));
-    sun.intensity = glm::vec3(2.0f, 1.0f, 0.5f);
+    const PunctualLight sun = directionalSun(-glm::vec3(0.3f, 0.2f, 1.0f), glm::vec3(2.0f, 1.0f, 0.5f));
     scene.lights.push_back(sun);
     scene.updateBounds();
     BakeSettings mc = smallSettings();
