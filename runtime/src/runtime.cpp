@@ -337,6 +337,97 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     return NRAD_OK;
 }
 
+// ----- the GPU buffer (nrad.h, docs/runtime.md "GPU buffers") -------------------------------------------------
+
+// Word offsets of the header's fields; runtime/shaders/nrad.glsl reads the same ones.
+namespace gpu {
+constexpr uint32_t kMagic = 0x5047524Eu;  // "NRGP"
+constexpr uint32_t kHeaderWords = 64;
+enum Word : uint32_t {
+    kWordMagic = 0, kWordVersion = 1, kWordContentFlags = 2, kWordOutputTransform = 3, kWordLower = 4, kWordUpper = 7,
+    kWordDims = 10, kWordFactor = 13, kWordBand = 16, kWordHiddenLayers = 17, kWordHiddenWidths = 18,
+    kWordParamsPerNetwork = 26, kWordNetworks = 27, kWordCells = 28, kWordTreeNodes = 29, kWordCellTable = 30,
+    kWordScales = 31, kWordNodes = 32, kWordWidths = 33, kWordBoxes = 34, kWordWeights = 35, kWordTotal = 36
+};
+
+struct Layout {
+    uint64_t cellTable, scales, nodes, widths, boxes, weights, total;  // in words
+};
+
+NradStatus layoutOf(const NradAsset_& a, Layout& l) {
+    const format::Topology& t = a.asset.topology;
+    for (uint32_t w : t.hiddenWidths)
+        if (w > NRAD_GPU_MAX_HIDDEN_WIDTH) return NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT;
+    if (t.hiddenWidths.size() > NRAD_MAX_HIDDEN_LAYERS || a.partition.cells > NRAD_GPU_MAX_CELLS)
+        return NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT;
+    const uint64_t nodes = a.partition.tree.size(), leaves = a.partition.tree.empty() ? 0 : a.partition.cells;
+    const uint64_t halves = uint64_t(a.asset.voxels.size()) * a.paramsPerNetwork;
+    l.cellTable = kHeaderWords;
+    l.scales = l.cellTable + a.partition.cells;
+    l.nodes = l.scales + a.asset.voxels.size();
+    l.widths = l.nodes + 2 * nodes;
+    l.boxes = l.widths + nodes;
+    l.weights = l.boxes + 6 * leaves;
+    l.total = l.weights + (halves + 1) / 2;
+    return l.total * 4 <= UINT32_MAX ? NRAD_OK : NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT;  // offsets are 32-bit words
+}
+
+uint32_t bitsOf(float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    return u;
+}
+
+void pack(const NradAsset_& a, const Layout& l, uint32_t* w) {
+    std::memset(w, 0, size_t(l.total) * 4);
+    const format::Grid& g = a.asset.grid;
+    const format::Topology& t = a.asset.topology;
+    w[kWordMagic] = kMagic;
+    w[kWordVersion] = NRAD_GPU_LAYOUT_VERSION;
+    w[kWordContentFlags] = a.asset.header.flags & format::kKnownFlags;
+    w[kWordOutputTransform] = uint32_t(t.outputTransform);
+    for (int k = 0; k < 3; ++k) {
+        w[kWordLower + k] = bitsOf(g.lower[k]);
+        w[kWordUpper + k] = bitsOf(g.upper[k]);
+        w[kWordDims + k] = g.dims[k];
+        w[kWordFactor + k] = bitsOf(a.partition.factor[k]);
+    }
+    w[kWordBand] = bitsOf(a.partition.band);
+    w[kWordHiddenLayers] = uint32_t(t.hiddenWidths.size());
+    for (size_t i = 0; i < t.hiddenWidths.size(); ++i) w[kWordHiddenWidths + i] = t.hiddenWidths[i];
+    w[kWordParamsPerNetwork] = a.paramsPerNetwork;
+    w[kWordNetworks] = uint32_t(a.asset.voxels.size());
+    w[kWordCells] = uint32_t(a.partition.cells);
+    w[kWordTreeNodes] = uint32_t(a.partition.tree.size());
+    w[kWordCellTable] = uint32_t(l.cellTable);
+    w[kWordScales] = uint32_t(l.scales);
+    w[kWordNodes] = uint32_t(l.nodes);
+    w[kWordWidths] = uint32_t(l.widths);
+    w[kWordBoxes] = uint32_t(l.boxes);
+    w[kWordWeights] = uint32_t(l.weights);
+    w[kWordTotal] = uint32_t(l.total);
+    for (uint64_t c = 0; c < a.partition.cells; ++c) w[l.cellTable + c] = UINT32_MAX;  // -1: no network
+    for (size_t i = 0; i < a.asset.voxels.size(); ++i) {
+        w[l.cellTable + a.asset.voxels[i].index] = uint32_t(i);
+        w[l.scales + i] = bitsOf(a.scales[i]);
+    }
+    const std::vector<format::TreeNode>& nodes = a.partition.tree;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        w[l.nodes + 2 * i] = nodes[i].axis | (nodes[i].split << 2);  // as the file's TREE records
+        w[l.nodes + 2 * i + 1] = nodes[i].child;
+        w[l.widths + i] = bitsOf(a.partition.widths[i]);
+    }
+    for (size_t i = 0; i < a.partition.boxes.size(); ++i)
+        for (int k = 0; k < 3; ++k) {
+            w[l.boxes + 6 * i + size_t(k)] = a.partition.boxes[i].lo[k];
+            w[l.boxes + 6 * i + 3 + size_t(k)] = a.partition.boxes[i].hi[k];
+        }
+    const std::vector<float>& weights = a.asset.weights;
+    for (size_t i = 0; i < weights.size(); ++i)
+        w[l.weights + i / 2] |= uint32_t(format::floatToHalf(weights[i])) << (16 * (i & 1));
+}
+}  // namespace gpu
+
 template <typename F>
 NradStatus guarded(F&& f) {
     try {
@@ -367,6 +458,7 @@ const char* nradStatusString(NradStatus status) {
         case NRAD_ERROR_INVALID_CONTENT: return "the asset's content is invalid";
         case NRAD_ERROR_UNSUPPORTED_KERNEL: return "this CPU cannot run the requested kernel";
         case NRAD_ERROR_INTERNAL: return "internal error";
+        case NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT: return "the asset exceeds the GPU layout's limits";
     }
     return "unknown status";
 }
@@ -512,6 +604,24 @@ NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, con
         }
         return NRAD_OK;
     });
+}
+
+NradStatus nradGetGpuBufferSize(NradAsset a, size_t* bytes) {
+    if (!a || !bytes) return NRAD_ERROR_INVALID_ARGUMENT;
+    gpu::Layout l;
+    NradStatus st = gpu::layoutOf(*a, l);
+    *bytes = st == NRAD_OK ? size_t(l.total) * 4 : 0;
+    return st;
+}
+
+NradStatus nradPackGpuBuffer(NradAsset a, void* buffer, size_t capacity) {
+    if (!a || !buffer) return NRAD_ERROR_INVALID_ARGUMENT;
+    gpu::Layout l;
+    if (NradStatus st = gpu::layoutOf(*a, l); st != NRAD_OK) return st;
+    if (capacity < l.total * 4) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (reinterpret_cast<uintptr_t>(buffer) % 4 != 0) return NRAD_ERROR_INVALID_ARGUMENT;
+    gpu::pack(*a, l, static_cast<uint32_t*>(buffer));
+    return NRAD_OK;
 }
 
 NradStatus nradSelectKernel(NradKernel kernel) {

@@ -19,37 +19,13 @@
 #include "baker/scene/gltf_loader.h"
 #include "runtime/src/kernels.h"  // rt::blendedBlocksSoFar(): which path the vector kernels took
 #include "support/test_paths.h"
+#include "support/random_asset.h"
 #include "support/test_trees.h"
 
 namespace nrad {
 namespace {
 
-format::Asset randomAsset(std::vector<uint32_t> hidden, format::WeightEncoding enc, format::OutputTransform transform,
-                          uint32_t seed, glm::uvec3 dims = glm::uvec3(3, 2, 2), float band = 0.0f) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    format::Asset a;
-    if (band > 0.0f) {
-        a.header.flags = format::kFlagBlended;
-        a.grid.blendBand = band;
-    }
-    for (int k = 0; k < 3; ++k) {
-        a.grid.lower[k] = -1.0f - float(k);
-        a.grid.upper[k] = 2.0f + float(k);
-        a.grid.dims[k] = dims[k];
-    }
-    a.topology.hiddenWidths = hidden;
-    a.topology.weightEncoding = enc;
-    a.topology.outputTransform = transform;
-    for (uint32_t v = 0; v < a.grid.voxelCount(); v += 2) a.voxels.push_back({v, 0.5f + float(v)});  // every other voxel
-    size_t n = a.voxels.size() * a.topology.parameterCount();
-    for (size_t i = 0; i < n; ++i) {
-        float w = 0.6f * u(rng);
-        a.weights.push_back(enc == format::WeightEncoding::Float16 ? format::halfToFloat(format::floatToHalf(w)) : w);
-    }
-    a.metadata = "{\"test\":true}";
-    return a;
-}
+using test::randomAsset;
 
 size_t networkOf(const format::Asset& a, int64_t voxel) {
     for (size_t i = 0; i < a.voxels.size(); ++i)

@@ -27,7 +27,7 @@ extern "C" {
 #endif
 
 #define NRAD_VERSION_MAJOR 0
-#define NRAD_VERSION_MINOR 3
+#define NRAD_VERSION_MINOR 4
 #define NRAD_VERSION_PATCH 0
 
 typedef struct NradAsset_* NradAsset;
@@ -43,7 +43,8 @@ typedef enum NradStatus {
     NRAD_ERROR_CORRUPT = 7,           /* a CRC mismatch, trailing bytes, or an invalid section table */
     NRAD_ERROR_INVALID_CONTENT = 8,   /* a grid, topology, voxel table or weight that is not valid */
     NRAD_ERROR_UNSUPPORTED_KERNEL = 9,/* nradSelectKernel: this CPU cannot run that kernel */
-    NRAD_ERROR_INTERNAL = 10
+    NRAD_ERROR_INTERNAL = 10,
+    NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT = 11 /* nradGetGpuBufferSize: the asset exceeds the GPU layout's limits */
 } NradStatus;
 
 /* A static, human-readable description of a status (never null). */
@@ -158,6 +159,28 @@ typedef struct NradSurface {
  * only (and its flag). */
 NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
                           const float* directions, const NradSurface* surfaces, float* rgb, uint8_t* pointFlags);
+
+/* ----- GPU buffers -------------------------------------------------------------------------------------- */
+
+/* The asset packed for shading on a GPU: one buffer of little-endian 32-bit words that an engine uploads as a
+ * read-only storage buffer (Vulkan, D3D12 structured/raw buffer, OpenGL SSBO, Metal buffer) and that
+ * runtime/shaders/nrad.glsl reads: a 256-byte header of constants and word offsets, the cell -> network table,
+ * the networks' output scales, the kd-tree (nodes, blending widths, leaf boxes) if the asset has one, and the
+ * weights in fp16, two per word (docs/runtime.md, "GPU buffers"). Built from the loaded, validated asset: the
+ * loader's checks apply unchanged. fp16 weights are copied exactly; fp32 weights are rounded to fp16. */
+#define NRAD_GPU_LAYOUT_VERSION 1
+/* The widest hidden layer the GLSL evaluates (its per-invocation arrays); wider assets cannot be packed. */
+#define NRAD_GPU_MAX_HIDDEN_WIDTH 32
+/* The largest cell -> network table packed (cells: grid voxels, or tree leaves); larger assets cannot be. */
+#define NRAD_GPU_MAX_CELLS (1u << 24)
+
+/* Bytes of the packed buffer (a multiple of 4). NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT if the asset exceeds the
+ * limits above. */
+NradStatus nradGetGpuBufferSize(NradAsset asset, size_t* bytes);
+/* Writes the packed buffer to `buffer` (4-byte aligned, at least nradGetGpuBufferSize bytes: a mapped
+ * staging buffer will do); writes nothing and returns NRAD_ERROR_INVALID_ARGUMENT if `capacity` is smaller or
+ * `buffer` is not aligned. Allocates nothing. */
+NradStatus nradPackGpuBuffer(NradAsset asset, void* buffer, size_t capacity);
 
 /* ----- kernels --------------------------------------------------------------------------------------- */
 

@@ -62,6 +62,13 @@ public:
     NradStatus evaluateBatch(size_t count, const NradBatchSoA& batch) const {
         return nradEvaluateBatchSoA(handle_, count, &batch);
     }
+    NradStatus shadeBatch(size_t count, const float* positions, const float* normals, const float* directions,
+                          const NradSurface* surfaces, float* rgb, uint8_t* flags = nullptr) const {
+        return nradShadeBatch(handle_, count, positions, normals, directions, surfaces, rgb, flags);
+    }
+    // The packed GPU buffer (nradGetGpuBufferSize / nradPackGpuBuffer): `bytes` of 4-byte-aligned `buffer`.
+    NradStatus gpuBufferSize(size_t& bytes) const { return nradGetGpuBufferSize(handle_, &bytes); }
+    NradStatus packGpuBuffer(void* buffer, size_t capacity) const { return nradPackGpuBuffer(handle_, buffer, capacity); }
 
 private:
     NradAsset handle_ = nullptr;
