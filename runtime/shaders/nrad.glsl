@@ -227,8 +227,28 @@ float nradExpMinusOne(float v) {
     return q * uintBitsToFloat(uint(int(n) + 127) << 23u) - 1.0;
 }
 
-// Radiance of network `net` (decoded: transform, scale, clamped at 0) for the nine inputs.
-vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
+// The default 9-9-3 network with every loop bound a constant, so that compilers unroll it and keep the
+// activations in registers (the general loop below indexes arrays with run-time bounds, which GPUs put in
+// local memory). The same sums in the same order as the general loop.
+vec3 nradForward993(uint w, vec3 local, vec3 normal, vec3 direction) {
+    float x[9] = float[9](local.x, local.y, local.z, normal.x, normal.y, normal.z, direction.x, direction.y, direction.z);
+    float h[9];
+    for (int o = 0; o < 9; ++o) {
+        float s = nradWeight(w + 81u + uint(o));
+        for (int i = 0; i < 9; ++i) s += nradWeight(w + uint(9 * o + i)) * x[i];
+        h[o] = s > 0.0 ? s : 0.0;
+    }
+    vec3 y;
+    for (int o = 0; o < 3; ++o) {
+        float s = nradWeight(w + 117u + uint(o));
+        for (int i = 0; i < 9; ++i) s += nradWeight(w + 90u + uint(9 * o + i)) * h[i];
+        y[o] = s;
+    }
+    return y;
+}
+
+// Any topology the layout allows (hidden widths up to NRAD_GPU_MAX_HIDDEN_WIDTH): the last layer's outputs.
+vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
     float a[NRAD_GPU_MAX_HIDDEN_WIDTH];
     float b[NRAD_GPU_MAX_HIDDEN_WIDTH];
     for (int i = 0; i < 3; ++i) {
@@ -237,7 +257,6 @@ vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
         a[6 + i] = direction[i];
     }
     uint layers = nradWords[NRAD_WORD_HIDDEN_LAYERS];
-    uint w = uint(net) * nradWords[NRAD_WORD_PARAMS];  // half index of the network's first parameter
     uint inputs = 9u;
     for (uint l = 0u; l <= layers; ++l) {
         bool last = l == layers;
@@ -252,11 +271,19 @@ vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
         w = bias + outputs;
         inputs = outputs;
     }
+    return vec3(a[0], a[1], a[2]);
+}
+
+// Radiance of network `net` (decoded: transform, scale, clamped at 0) for the nine inputs.
+vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
+    uint w = uint(net) * nradWords[NRAD_WORD_PARAMS];  // half index of the network's first parameter
+    bool default993 = nradWords[NRAD_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_WORD_HIDDEN_WIDTHS] == 9u;
+    vec3 y = default993 ? nradForward993(w, local, normal, direction) : nradForward(w, local, normal, direction);
     bool exponential = nradWords[NRAD_WORD_OUTPUT_TRANSFORM] == 1u;
     float scale = nradFloat(nradWords[NRAD_WORD_SCALES] + uint(net));
     vec3 rgb;
     for (int c = 0; c < 3; ++c) {
-        float v = (exponential ? nradExpMinusOne(a[c]) : a[c]) * scale;
+        float v = (exponential ? nradExpMinusOne(y[c]) : y[c]) * scale;
         rgb[c] = v > 0.0 ? v : 0.0;
     }
     return rgb;

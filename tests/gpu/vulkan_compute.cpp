@@ -294,10 +294,7 @@ double VulkanCompute::dispatch(Pipeline* p, const std::vector<Buffer*>& buffers,
     vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_COMPUTE, p->pipeline);
     vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_COMPUTE, p->layout, 0, 1, &set, 0, nullptr);
     if (p->pushBytes) vkCmdPushConstants(cb, p->layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, p->pushBytes, push);
-    if (queries_) {
-        vkCmdResetQueryPool(cb, queries_, 0, 2);
-        vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, 0);
-    }
+    writeTimestamp(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     VkMemoryBarrier barrier{};
     barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
     barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
@@ -308,15 +305,26 @@ double VulkanCompute::dispatch(Pipeline* p, const std::vector<Buffer*>& buffers,
                                  0, nullptr, 0, nullptr);
         vkCmdDispatch(cb, groups, 1, 1);
     }
-    if (queries_) vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, 1);
+    writeTimestamp(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
     submitAndWait(cb);
     vkDestroyDescriptorPool(device_, pool, nullptr);
+    const double ms = elapsedMs();
+    return ms < 0.0 ? ms : ms / double(repeat > 0 ? repeat : 1);
+}
+
+void VulkanCompute::writeTimestamp(VkCommandBuffer cb, uint32_t index, VkPipelineStageFlagBits stage) {
+    if (!queries_) return;
+    if (index == 0) vkCmdResetQueryPool(cb, queries_, 0, 2);
+    vkCmdWriteTimestamp(cb, stage, queries_, index);
+}
+
+double VulkanCompute::elapsedMs() {
     if (!queries_) return -1.0;
     uint64_t ticks[2] = {0, 0};
     check(vkGetQueryPoolResults(device_, queries_, 0, 2, sizeof ticks, ticks, sizeof(uint64_t),
                                 VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
           "vkGetQueryPoolResults");
-    return double(ticks[1] - ticks[0]) * double(timestampPeriod_) * 1e-6 / double(repeat > 0 ? repeat : 1);
+    return double(ticks[1] - ticks[0]) * double(timestampPeriod_) * 1e-6;
 }
 
 }  // namespace nrad::gpu

@@ -50,14 +50,21 @@ public:
     const std::string& deviceName() const { return deviceName_; }
     bool isCpuDevice() const { return cpuDevice_; }
 
+    // For work beyond compute (the raster example): the device, a memory type with `want` among `bits`, a
+    // one-time command buffer and its submission (waits), and the two timestamps of the query pool (write
+    // index 0 and 1 into `cb`; elapsedMs reads them; negative where the queue has no timestamps).
+    VkDevice device() const { return device_; }
+    uint32_t memoryType(uint32_t bits, VkMemoryPropertyFlags want) const;
+    VkCommandBuffer begin();
+    void submitAndWait(VkCommandBuffer cb);
+    void writeTimestamp(VkCommandBuffer cb, uint32_t index, VkPipelineStageFlagBits stage);
+    double elapsedMs();
+
 private:
     VulkanCompute() = default;
-    uint32_t memoryType(uint32_t bits, VkMemoryPropertyFlags want) const;
     Buffer makeBuffer(size_t bytes, VkBufferUsageFlags usage, VkMemoryPropertyFlags props);
     void destroy(Buffer& b);
     void copy(VkBuffer from, VkBuffer to, size_t bytes);
-    VkCommandBuffer begin();
-    void submitAndWait(VkCommandBuffer cb);
 
     VkInstance instance_ = VK_NULL_HANDLE;
     VkPhysicalDevice physical_ = VK_NULL_HANDLE;
