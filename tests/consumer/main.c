@@ -46,6 +46,16 @@ int main(int argc, char** argv) {
         fprintf(stderr, "batch mismatch\n");
         return 1;
     }
+    /* The packed GPU buffer (328 bytes for the golden asset: tests/data/golden/tiny-gpu.bin). */
+    {
+        size_t gpuBytes = 0;
+        uint32_t gpuWords[128];
+        if (nradGetGpuBufferSize(asset, &gpuBytes) != NRAD_OK || gpuBytes != 328 ||
+            nradPackGpuBuffer(asset, gpuWords, sizeof gpuWords) != NRAD_OK || gpuWords[0] != 0x5047524Eu) {
+            fprintf(stderr, "GPU buffer: unexpected size %u or content\n", (unsigned)gpuBytes);
+            return 1;
+        }
+    }
     printf("consumer ok: %u occupied voxels, kernel %d, radiance %g %g %g\n", info.occupiedVoxels, (int)nradActiveKernel(),
            rgb[0], rgb[1], rgb[2]);
     nradReleaseAsset(asset);

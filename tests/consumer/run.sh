@@ -15,4 +15,5 @@ fi
 cmake -S "$src/tests/consumer" -B "$scratch/build" -DCMAKE_PREFIX_PATH="$scratch/install" -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build "$scratch/build" > /dev/null
 ls "$scratch/install/lib"*/cmake/nrad/nradConfigVersion.cmake > /dev/null
+ls "$scratch/install/share/nrad/shaders/nrad.glsl" "$scratch/install/share/nrad/shaders/nrad_evaluate.comp" > /dev/null
 "$scratch/build/consumer" "$src/tests/data/golden/tiny.nrad"
