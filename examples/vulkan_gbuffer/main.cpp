@@ -211,27 +211,12 @@ public:
     }
 
     void bindBuffer(VkDescriptorSet set, uint32_t binding, VkBuffer buffer) {
-        VkDescriptorBufferInfo info{buffer, 0, VK_WHOLE_SIZE};
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        w.pBufferInfo = &info;
-        vkUpdateDescriptorSets(dev_, 1, &w, 0, nullptr);
+        const VkDescriptorBufferInfo info{buffer, 0, VK_WHOLE_SIZE};
+        write(set, binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, &info, nullptr);
     }
-
     void bindImage(VkDescriptorSet set, uint32_t binding, VkImageView view) {
-        VkDescriptorImageInfo info{VK_NULL_HANDLE, view, VK_IMAGE_LAYOUT_GENERAL};
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-        w.pImageInfo = &info;
-        vkUpdateDescriptorSets(dev_, 1, &w, 0, nullptr);
+        const VkDescriptorImageInfo info{VK_NULL_HANDLE, view, VK_IMAGE_LAYOUT_GENERAL};
+        write(set, binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, nullptr, &info);
     }
 
     // Four RGBA32F colour targets (left in GENERAL for the compute pass and the copies) and a depth buffer.
@@ -362,6 +347,19 @@ public:
     VkFramebuffer framebuffer() const { return framebuffer_; }
 
 private:
+    void write(VkDescriptorSet set, uint32_t binding, VkDescriptorType type, const VkDescriptorBufferInfo* buffer,
+               const VkDescriptorImageInfo* image) {
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+        w.dstBinding = binding;
+        w.descriptorCount = 1;
+        w.descriptorType = type;
+        w.pBufferInfo = buffer;
+        w.pImageInfo = image;
+        vkUpdateDescriptorSets(dev_, 1, &w, 0, nullptr);
+    }
+
     VulkanCompute& vk_;
     VkDevice dev_;
     int width_, height_;

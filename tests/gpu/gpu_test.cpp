@@ -222,7 +222,12 @@ TEST(Gpu, BundledScenesGBuffersMatchTheCpuRuntime) {
                                      {"scenes/cornell-box/cornell-box.gltf", 16384},
                                      {"scenes/cornell-box-glossy/cornell-box-glossy.gltf", 0},
                                      {"scenes/split-rooms/split-rooms.gltf", 0},
-                                     {"scenes/stress/cornell-box-scale-1e4/cornell-box-scale-1e4.gltf", 0}};
+                                     {"scenes/stress/cornell-box-scale-1e4/cornell-box-scale-1e4.gltf", 0},
+                                     {"scenes/stress/cornell-box-scale-1e-3/cornell-box-scale-1e-3.gltf", 0},
+                                     {"scenes/stress/degenerate/degenerate.gltf", 0},
+                                     {"scenes/stress/furnace-0.99/furnace-0.99.gltf", 0},
+                                     {"scenes/stress/radiance-span/radiance-span.gltf", 0},
+                                     {"scenes/stress/tiny-emitter/tiny-emitter.gltf", 0}};
     for (const Case& c : cases) {
         Scene scene = loadGltf(test::sourcePath(c.scene));
         BakeSettings s;
@@ -234,7 +239,7 @@ TEST(Gpu, BundledScenesGBuffersMatchTheCpuRuntime) {
         nrad::Asset asset = load(bakeScene(scene, s).asset);
         Accel accel(scene);
         const GBuffer g = renderGBuffer(scene, accel, 160, 120);
-        ASSERT_GT(g.count(), 10000u) << c.scene;
+        ASSERT_GT(g.count(), 1000u) << c.scene;
         for (bool shade : {false, true}) {
             const Agreement r = compare(runOnGpu(*vk, asset, g, shade), runOnCpu(asset, g, shade));
             std::printf("%-64s %s %-8s worst relative difference %.3g\n", c.scene, c.budget ? "tree" : "grid",
