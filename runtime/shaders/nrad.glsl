@@ -274,7 +274,7 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
     return vec3(a[0], a[1], a[2]);
 }
 
-// Radiance of network `net` (decoded: transform, scale, clamped at 0) for the nine inputs.
+// Radiance of network `net` (decoded: transform, scale, clamped to [0, 1e30]) for the nine inputs.
 vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
     uint w = uint(net) * nradWords[NRAD_WORD_PARAMS];  // half index of the network's first parameter
     bool default993 = nradWords[NRAD_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_WORD_HIDDEN_WIDTHS] == 9u;
@@ -284,7 +284,8 @@ vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
     vec3 rgb;
     for (int c = 0; c < 3; ++c) {
         float v = (exponential ? nradExpMinusOne(y[c]) : y[c]) * scale;
-        rgb[c] = v > 0.0 ? v : 0.0;
+        v = v > 0.0 ? v : 0.0;
+        rgb[c] = v < 1e30 ? v : 1e30;  // eval::kMaxRadiance
     }
     return rgb;
 }

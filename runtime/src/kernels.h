@@ -28,7 +28,7 @@ constexpr float kExpHi = eval::kMaxLog, kExpLo = eval::kMinLog, kLog2e = eval::k
 constexpr const float* kExpP = eval::kExpP;
 
 // x: kInputs rows of kChunk floats; y: kOutputs rows of kChunk floats: the radiance (scale and output
-// transform applied, never negative, NaN mapped to 0).
+// transform applied, clamped to [0, eval::kMaxRadiance], NaN mapped to 0).
 using ChunkKernel = void (*)(const NetworkView& net, const float* x, float* y);
 
 void evalChunkScalar(const NetworkView& net, const float* x, float* y);

@@ -25,13 +25,13 @@ inline typename V::F expMinusOne(typename V::F v) {
     return V::sub(V::timesPow2(q, n), V::set1(1.0f));
 }
 
-// The network's three outputs -> radiance: output transform, the voxel's scale, clamped at 0. The zero is
-// max's first operand, so a NaN output yields 0.
+// The network's three outputs -> radiance: output transform, the voxel's scale, clamped to [0, kMaxRadiance].
+// The scaled value is max's first operand, so a NaN output yields 0.
 template <class V>
 inline void toRadiance(const NetworkView& net, typename V::F out[3]) {
     for (int c = 0; c < kOutputs; ++c) {
         typename V::F v = net.exponential ? expMinusOne<V>(out[c]) : out[c];
-        out[c] = V::max(V::mul(v, V::set1(net.scale)), V::zero());
+        out[c] = V::min(V::max(V::mul(v, V::set1(net.scale)), V::zero()), V::set1(eval::kMaxRadiance));
     }
 }
 

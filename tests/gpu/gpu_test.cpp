@@ -157,6 +157,7 @@ TEST(Gpu, RandomBatchesMatchTheCpuRuntime) {
         format::OutputTransform transform;
         float band;
         bool tree;
+        bool extreme = false;  // the largest fp16 weights and float scales: outputs clamped at eval::kMaxRadiance
     };
     const std::vector<Case> cases = {
         {"grid, exponential", {9}, format::OutputTransform::Exponential, 0.0f, false},
@@ -165,6 +166,8 @@ TEST(Gpu, RandomBatchesMatchTheCpuRuntime) {
         {"grid, 32 hidden (the GPU maximum)", {32}, format::OutputTransform::Exponential, 0.0f, false},
         {"tree", {9}, format::OutputTransform::Exponential, 0.0f, true},
         {"tree, blended", {9}, format::OutputTransform::Exponential, 0.125f, true},
+        {"extreme weights and scales, linear", {9}, format::OutputTransform::ClampedLinear, 0.125f, false, true},
+        {"extreme weights and scales, exp", {9}, format::OutputTransform::Exponential, 0.125f, false, true},
     };
     for (const Case& c : cases) {
         format::Asset a = test::randomAsset(c.hidden, format::WeightEncoding::Float16, c.transform, 11, glm::uvec3(4, 3, 5), c.band);
@@ -180,6 +183,10 @@ TEST(Gpu, RandomBatchesMatchTheCpuRuntime) {
             std::uniform_real_distribution<float> u(-0.6f, 0.6f);
             a.weights.resize(a.voxels.size() * a.topology.parameterCount());
             for (float& w : a.weights) w = format::halfToFloat(format::floatToHalf(u(rng)));
+        }
+        if (c.extreme) {
+            for (size_t i = 0; i < a.weights.size(); ++i) a.weights[i] = i % 3 == 0 ? -65504.0f : 65504.0f;
+            for (format::VoxelEntry& v : a.voxels) v.scale = 3.0e38f;
         }
         a.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;
         nrad::Asset asset = load(a);

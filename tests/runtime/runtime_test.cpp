@@ -421,6 +421,75 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
     }
 }
 
+// Every asset the loader accepts gives finite radiance for every finite input (docs/format.md): the fuzzer's
+// +inf asset (a linear output, scale 247, fp16 weights 688, evaluated with huge finite normals) and its
+// relatives (the largest fp16 weights, the largest float scale, exponential outputs), through every kernel,
+// every entry point and shading. Outputs are clamped to [0, eval::kMaxRadiance].
+TEST(Runtime, EveryAcceptedAssetGivesFiniteOutputForFiniteInputs) {
+    struct Case {
+        format::OutputTransform transform;
+        float scale, weight;
+    };
+    const Case cases[] = {{format::OutputTransform::ClampedLinear, 247.0f, 688.0f},
+                          {format::OutputTransform::ClampedLinear, 3.0e38f, 65504.0f},
+                          {format::OutputTransform::Exponential, 3.0e38f, 688.0f},
+                          {format::OutputTransform::Exponential, 247.0f, -65504.0f}};
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    for (const Case& c : cases) {
+        format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, c.transform, 2, glm::uvec3(2, 2, 2), 0.25f);
+        for (size_t i = 0; i < a.weights.size(); ++i) a.weights[i] = i % 3 == 0 ? -c.weight : c.weight;
+        for (format::VoxelEntry& v : a.voxels) v.scale = c.scale;
+        a.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;
+        const std::vector<uint8_t> bytes = format::encode(a);
+        nrad::Asset asset;
+        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+        // Inside the grid (blended and not), inputs from unit length up to 1e38 in magnitude.
+        Points pts;
+        std::vector<NradSurface> surfaces;
+        for (int i = 0; i < 4096; ++i) {
+            const float magnitude = std::pow(10.0f, 38.0f * float(i % 64) / 63.0f);
+            for (int k = 0; k < 3; ++k) {
+                pts.p.push_back(a.grid.lower[k] + (a.grid.upper[k] - a.grid.lower[k]) * (0.5f + 0.499f * u(rng)));
+                pts.n.push_back(u(rng) * magnitude);
+                pts.d.push_back(u(rng) * (i % 2 ? magnitude : 1.0f));
+            }
+            surfaces.push_back({{1.0f, 1.0f, 1.0f}, 0.0f, 0.5f, i % 5 ? 1.0f : 1e30f, {1.0f, 2.0f, 3.0f}});
+        }
+        const size_t n = surfaces.size();
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> batch(3 * n), shaded(3 * n), soa(3 * n);
+            ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), batch.data()), NRAD_OK);
+            ASSERT_EQ(asset.shadeBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), surfaces.data(), shaded.data()), NRAD_OK);
+            std::vector<float> px(n), py(n), pz(n), nx(n), ny(n), nz(n), dx(n), dy(n), dz(n), r(n), g(n), b(n);
+            for (size_t i = 0; i < n; ++i) {
+                px[i] = pts.p[3 * i], py[i] = pts.p[3 * i + 1], pz[i] = pts.p[3 * i + 2];
+                nx[i] = pts.n[3 * i], ny[i] = pts.n[3 * i + 1], nz[i] = pts.n[3 * i + 2];
+                dx[i] = pts.d[3 * i], dy[i] = pts.d[3 * i + 1], dz[i] = pts.d[3 * i + 2];
+            }
+            NradBatchSoA s{px.data(), py.data(), pz.data(), nx.data(), ny.data(), nz.data(), dx.data(), dy.data(), dz.data(),
+                           r.data(), g.data(), b.data(), nullptr};
+            ASSERT_EQ(asset.evaluateBatch(n, s), NRAD_OK);
+            size_t clamped = 0;
+            for (size_t i = 0; i < n; ++i) {
+                float one[3];
+                ASSERT_EQ(asset.evaluate(&pts.p[3 * i], &pts.n[3 * i], &pts.d[3 * i], one), NRAD_OK);
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float v[4] = {batch[3 * i + size_t(ch)], shaded[3 * i + size_t(ch)], one[ch], (ch == 0 ? r : ch == 1 ? g : b)[i]};
+                    for (float x : v) ASSERT_TRUE(std::isfinite(x) && x >= 0.0f) << "kernel " << k << " point " << i << ": " << x;
+                    EXPECT_LE(batch[3 * i + size_t(ch)], eval::kMaxRadiance * 1.000001f);
+                    clamped += batch[3 * i + size_t(ch)] >= 0.999f * eval::kMaxRadiance;
+                }
+            }
+            if (c.scale > 1e37f) {
+                EXPECT_GT(clamped, 0u) << "the case must reach the bound";
+            }
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
 TEST(Runtime, FlagsForOutsideEmptyAndInvalidPoints) {
     format::Asset a = randomAsset({9}, format::WeightEncoding::Float32, format::OutputTransform::ClampedLinear, 3);
     std::vector<uint8_t> bytes = format::encode(a);

@@ -483,11 +483,12 @@ inline float expMinusOne(float v) {
     return q * pow2 - 1.0f;
 }
 
-// Radiance from one output value: transform, the voxel's scale, clamped at 0 (NaN becomes 0).
+// Radiance from one output value: transform, the voxel's scale, clamped to [0, kMaxRadiance] (NaN becomes 0).
 inline float decodeOutput(format::OutputTransform transform, float scale, float y) {
     float v = transform == format::OutputTransform::Exponential ? expMinusOne(y) : y;
     v *= scale;
-    return v > 0.0f ? v : 0.0f;
+    v = v > 0.0f ? v : 0.0f;
+    return v < kMaxRadiance ? v : kMaxRadiance;
 }
 
 inline void decodeOutputs(format::OutputTransform transform, float scale, const float y[kOutputs], float rgb[kOutputs]) {

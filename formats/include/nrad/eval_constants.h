@@ -13,6 +13,10 @@ constexpr int kOutputs = 3;  // RGB
 // and the same order of operations in every kernel.
 constexpr float kMinLog = -87.0f, kMaxLog = 80.0f;
 constexpr float kLog2e = 1.44269504f, kLn2Hi = 0.693359375f, kLn2Lo = -2.12194440e-4f;
+// Every decoded network output is clamped to [0, kMaxRadiance] (NaN becomes 0): whatever weights, scales and
+// finite inputs an accepted asset meets, its radiance stays finite, blended (weights sum to 1) or shaded
+// (docs/format.md, "Output transform"). Far above any radiance a scene holds, in any units.
+constexpr float kMaxRadiance = 1e30f;
 constexpr float kExpP[7] = {1.0f, 1.0f, 0.5f, 0.166666672f, 0.0416666567f, 0.00833336264f, 0.00138889090f};
 
 }  // namespace nrad::eval
