@@ -82,7 +82,7 @@ void Avx2::interleave3(const F in[3], F out[3]) {
 }
 }  // namespace
 
-void evalChunkAvx2(const NetworkView& net, const float* x, float* y) { evalChunk<Avx2>(net, x, y); }
+void evalChunkAvx2(const NetworkView& net, const float* x, float* y, int count) { evalChunk<Avx2>(net, x, y, count); }
 
 void evalBlocksAvx2(const BlockContext& ctx, size_t blocks, Deferred& def) {
     if (ctx.io.stride == 1)

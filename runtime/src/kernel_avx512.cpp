@@ -75,7 +75,7 @@ void Avx512::interleave3(const F in[3], F out[3]) {
 }
 }  // namespace
 
-void evalChunkAvx512(const NetworkView& net, const float* x, float* y) { evalChunk<Avx512>(net, x, y); }
+void evalChunkAvx512(const NetworkView& net, const float* x, float* y, int count) { evalChunk<Avx512>(net, x, y, count); }
 
 void evalBlocksAvx512(const BlockContext& ctx, size_t blocks, Deferred& def) {
     if (ctx.io.stride == 1)

@@ -5,11 +5,11 @@
 
 namespace nrad::rt {
 
-void evalChunkScalar(const NetworkView& net, const float* x, float* y) {
+void evalChunkScalar(const NetworkView& net, const float* x, float* y, int count) {
     float scratch[eval::kForwardScratch];
     const format::OutputTransform transform =
         net.exponential ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-    for (int p = 0; p < kChunk; ++p) {
+    for (int p = 0; p < count; ++p) {
         float in[kInputs], out[kOutputs];
         for (int i = 0; i < kInputs; ++i) in[i] = x[i * kChunk + p];
         eval::forward(net.hiddenLayers, net.hiddenWidths, net.params, in, out, scratch);

@@ -28,13 +28,15 @@ constexpr float kExpHi = eval::kMaxLog, kExpLo = eval::kMinLog, kLog2e = eval::k
 constexpr const float* kExpP = eval::kExpP;
 
 // x: kInputs rows of kChunk floats; y: kOutputs rows of kChunk floats: the radiance (scale and output
-// transform applied, clamped to [0, eval::kMaxRadiance], NaN mapped to 0).
-using ChunkKernel = void (*)(const NetworkView& net, const float* x, float* y);
+// transform applied, clamped to [0, eval::kMaxRadiance], NaN mapped to 0) of the first `count` points (at most
+// kChunk; vector kernels compute whole vectors, so rows must be readable, and are written, up to count
+// rounded up to their width).
+using ChunkKernel = void (*)(const NetworkView& net, const float* x, float* y, int count);
 
-void evalChunkScalar(const NetworkView& net, const float* x, float* y);
+void evalChunkScalar(const NetworkView& net, const float* x, float* y, int count);
 #if defined(__x86_64__) || defined(_M_X64)
-void evalChunkAvx2(const NetworkView& net, const float* x, float* y);
-void evalChunkAvx512(const NetworkView& net, const float* x, float* y);
+void evalChunkAvx2(const NetworkView& net, const float* x, float* y, int count);
+void evalChunkAvx512(const NetworkView& net, const float* x, float* y, int count);
 #endif
 
 // ----- whole batches, a vector of points at a time (the SIMD kernels only) -----------------------------

@@ -224,6 +224,9 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
     }
 }
 
+// Up to this many deferred entries are ordered by sorting them rather than by a counting sort over every network.
+constexpr size_t kSmallBatchEntries = 64;
+
 NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v) {
     // Entry indices are 32-bit and a point makes up to eval::kMaxSupports entries: split huge batches.
     constexpr size_t kMaxBatch = UINT32_MAX / eval::kMaxSupports;
@@ -291,32 +294,38 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     const size_t entries = s.index.size();
     if (entries == 0) return NRAD_OK;
 
-    // 3. Group the deferred entries by network (counting sort, stable), so every chunk runs one network and
-    //    each point's supports are summed in network order, which is their voxel order (eval.h).
-    s.start.assign(nets + 1, 0);
-    for (size_t e = 0; e < entries; ++e) ++s.start[size_t(s.network[e]) + 1];
-    for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
+    // 3. Order the deferred entries by network, stably, so every chunk runs one network and each point's
+    //    supports are summed in network order, which is their voxel order (eval.h): a counting sort for big
+    //    batches, a sort of the entries themselves for small ones (a single point costs the same whatever
+    //    the number of networks).
     s.order.resize(entries);
-    {
-        std::vector<uint32_t>& fill = s.start;  // reuse as running offsets, restored below
-        for (size_t e = 0; e < entries; ++e) s.order[fill[size_t(s.network[e])]++] = uint32_t(e);
-        for (size_t k = nets; k > 0; --k) fill[k] = fill[k - 1];
-        fill[0] = 0;
+    if (entries <= kSmallBatchEntries) {
+        for (size_t e = 0; e < entries; ++e) s.order[e] = uint32_t(e);
+        for (size_t e = 1; e < entries; ++e)  // insertion sort: stable, and entries are few
+            for (size_t j = e; j > 0 && s.network[s.order[j - 1]] > s.network[s.order[j]]; --j) std::swap(s.order[j - 1], s.order[j]);
+    } else {
+        s.start.assign(nets + 1, 0);
+        for (size_t e = 0; e < entries; ++e) ++s.start[size_t(s.network[e]) + 1];
+        for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
+        for (size_t e = 0; e < entries; ++e) s.order[s.start[size_t(s.network[e])]++] = uint32_t(e);
     }
-    // 4. Run each group in chunks: gather SoA inputs, evaluate (output transform included), accumulate the
-    //    weighted radiance into the zeroed outputs.
+    // 4. Run each network's entries in chunks: gather SoA inputs, evaluate (output transform included),
+    //    accumulate the weighted radiance into the zeroed outputs.
     for (size_t e = 0; e < entries; ++e) {
         const size_t at = size_t(s.index[e]) * v.stride;
         v.out[0][at] = v.out[1][at] = v.out[2][at] = 0.0f;
     }
     alignas(64) float x[rt::kInputs * rt::kChunk];
     alignas(64) float y[rt::kOutputs * rt::kChunk];
-    for (size_t k = 0; k < nets; ++k) {
+    for (size_t runStart = 0; runStart < entries;) {
+        const int32_t k = s.network[s.order[runStart]];
+        size_t runEnd = runStart + 1;
+        while (runEnd < entries && s.network[s.order[runEnd]] == k) ++runEnd;
         rt::NetworkView net = first;
-        net.params += k * a.paramsPerNetwork;
-        net.scale = a.scales[k];
-        for (uint32_t g = s.start[k]; g < s.start[k + 1]; g += rt::kChunk) {
-            uint32_t n = std::min<uint32_t>(rt::kChunk, s.start[k + 1] - g);
+        net.params += size_t(k) * a.paramsPerNetwork;
+        net.scale = a.scales[size_t(k)];
+        for (size_t g = runStart; g < runEnd; g += rt::kChunk) {
+            const uint32_t n = uint32_t(std::min<size_t>(rt::kChunk, runEnd - g));
             for (uint32_t j = 0; j < n; ++j) {
                 size_t e = s.order[g + j], at = size_t(s.index[e]) * v.stride;
                 for (int c = 0; c < 3; ++c) {
@@ -325,14 +334,16 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
                     x[(6 + c) * rt::kChunk + j] = v.d[c][at];
                 }
             }
-            for (int r = 0; r < rt::kInputs; ++r) std::fill(x + r * rt::kChunk + n, x + (r + 1) * rt::kChunk, 0.0f);
-            kernel(net, x, y);
+            const uint32_t padded = std::min<uint32_t>(rt::kChunk, (n + 15) / 16 * 16);  // whole vectors of any width
+            for (int r = 0; r < rt::kInputs; ++r) std::fill(x + r * rt::kChunk + n, x + r * rt::kChunk + padded, 0.0f);
+            kernel(net, x, y, int(n));
             for (uint32_t j = 0; j < n; ++j) {
                 const size_t e = s.order[g + j], at = size_t(s.index[e]) * v.stride;
                 const float w = s.weight[e];
                 for (int c = 0; c < 3; ++c) v.out[c][at] += w * y[c * rt::kChunk + int(j)];
             }
         }
+        runStart = runEnd;
     }
     return NRAD_OK;
 }

@@ -109,10 +109,10 @@ __attribute__((always_inline)) inline void evalNetwork(const NetworkView& net, c
     for (int c = 0; c < 3; ++c) out[c] = V::add(o0[c], o1[c]);
 }
 
-// ChunkKernel: kChunk points in SoA rows.
+// ChunkKernel: the first `count` of kChunk points in SoA rows, whole vectors.
 template <class V>
-void evalChunk(const NetworkView& net, const float* x, float* y) {
-    for (int p = 0; p < kChunk; p += V::W) {
+void evalChunk(const NetworkView& net, const float* x, float* y, int count) {
+    for (int p = 0; p < count; p += V::W) {
         typename V::F in[kInputs], out[kOutputs];
         for (int i = 0; i < kInputs; ++i) in[i] = V::load(x + i * kChunk + p);
         evalNetwork<V>(net, in, out);

@@ -195,6 +195,38 @@ int main(int argc, char** argv) {
         nradSelectKernel(NRAD_KERNEL_AUTO);
     }
 
+    // One point per call (nradEvaluate), as a shader's per-pixel fallback or a gameplay query would: the rate
+    // must not fall with the number of networks. Grids of 3^3, 7^3 and 16^3 occupied voxels, incoherent points.
+    std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, kernel %d:\n", int(nradActiveKernel()));
+    std::printf("  %-10s %10s %14s\n", "grid", "networks", "M points/s");
+    for (uint32_t dim : {3u, 7u, 16u}) {
+        nrad::format::Asset big = a;
+        big.voxels.clear();
+        big.weights.clear();
+        for (int k = 0; k < 3; ++k) big.grid.dims[k] = dim;
+        for (uint32_t v = 0; v < dim * dim * dim; ++v) big.voxels.push_back({v, 1.0f});
+        for (size_t i = 0; i < big.voxels.size() * big.topology.parameterCount(); ++i) big.weights.push_back(u(rng));
+        const std::vector<uint8_t> bigBytes = nrad::format::encode(big);
+        NradAsset h = nullptr;
+        if (nradLoadFromMemory(bigBytes.data(), bigBytes.size(), NRAD_LOAD_COPY, &h, nullptr, 0) != NRAD_OK) return 1;
+        const size_t n = std::min<size_t>(points, 200'000);
+        Points single = makePoints(n, false, big.grid, 5);
+        double best = 0.0;
+        for (int r = 0; r < repeat; ++r) {
+            float rgb[3];
+            float sink = 0.0f;
+            auto t0 = clock_type::now();
+            for (size_t i = 0; i < n; ++i) {
+                nradEvaluate(h, &single.p[3 * i], &single.n[3 * i], &single.d[3 * i], rgb, nullptr);
+                sink += rgb[0];
+            }
+            best = std::max(best, double(n) / seconds(t0, clock_type::now()));
+            if (sink < 0.0f) std::printf("impossible\n");
+        }
+        std::printf("  %-10s %10zu %14.2f\n", (std::to_string(dim) + "^3").c_str(), big.voxels.size(), best * 1e-6);
+        nradReleaseAsset(h);
+    }
+
     // SH probe grid with the same bytes as the networks: 27 fp32 coefficients = 108 bytes per probe.
     int probesPerAxis = int(std::lround(std::cbrt(networkBytes / 108.0)));
     ProbeGrid g{{probesPerAxis, probesPerAxis, probesPerAxis}, {0, 0, 0}, {1, 1, 1}, {}};
