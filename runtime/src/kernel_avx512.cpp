@@ -1,8 +1,10 @@
 // AVX-512F kernels: 16 points per vector. Compiled with -mavx512f; called only after the CPU was checked.
 // GCC 12's AVX-512 intrinsics pass _mm512_undefined_ps() as the masked-off source, which its
 // -Wmaybe-uninitialized / -Wuninitialized report as a use of an uninitialised value (a false positive).
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
+#endif
 #include <immintrin.h>
 
 #include "kernels.h"

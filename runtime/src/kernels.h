@@ -7,6 +7,14 @@
 
 #include <nrad/eval_constants.h>
 
+#if defined(_MSC_VER) && !defined(__clang__)
+#define NRAD_NOINLINE __declspec(noinline)
+#define NRAD_ALWAYS_INLINE __forceinline
+#else
+#define NRAD_NOINLINE __attribute__((noinline))
+#define NRAD_ALWAYS_INLINE __attribute__((always_inline))
+#endif
+
 namespace nrad::rt {
 
 constexpr int kChunk = 64;  // points per chunk; the kernels process all of it (padding lanes are zeros)

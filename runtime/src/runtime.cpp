@@ -456,6 +456,8 @@ uint64_t nrad::rt::blendedBlocksSoFar() { return gBlendedBlocks.load(std::memory
 
 extern "C" {
 
+uint32_t nradGetVersion(void) { return NRAD_VERSION; }
+
 const char* nradStatusString(NradStatus status) {
     switch (status) {
         case NRAD_OK: return "ok";

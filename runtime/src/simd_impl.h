@@ -37,7 +37,7 @@ inline void toRadiance(const NetworkView& net, typename V::F out[3]) {
 
 // Any topology, layer by layer through two arrays of vectors.
 template <class V>
-__attribute__((noinline)) void evalNetworkGeneric(const NetworkView& net, const typename V::F in[kInputs],
+NRAD_NOINLINE void evalNetworkGeneric(const NetworkView& net, const typename V::F in[kInputs],
                                                   typename V::F out[kOutputs]) {
     using F = typename V::F;
     const F zero = V::zero();
@@ -64,7 +64,7 @@ __attribute__((noinline)) void evalNetworkGeneric(const NetworkView& net, const 
 
 // One network on W points: in[9] -> out[3] (network outputs, before the output transform).
 template <class V>
-__attribute__((always_inline)) inline void evalNetwork(const NetworkView& net, const typename V::F in[kInputs],
+NRAD_ALWAYS_INLINE inline void evalNetwork(const NetworkView& net, const typename V::F in[kInputs],
                                                        typename V::F out[kOutputs]) {
     using F = typename V::F;
     if (!(net.hiddenLayers == 1 && net.hiddenWidths[0] == 9)) return evalNetworkGeneric<V>(net, in, out);

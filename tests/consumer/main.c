@@ -46,6 +46,11 @@ int main(int argc, char** argv) {
         fprintf(stderr, "batch mismatch\n");
         return 1;
     }
+    /* The library linked is the one compiled against. */
+    if (nradGetVersion() != NRAD_VERSION || (nradGetVersion() >> 22) != NRAD_VERSION_MAJOR) {
+        fprintf(stderr, "version: linked %u, headers %u\n", (unsigned)nradGetVersion(), (unsigned)NRAD_VERSION);
+        return 1;
+    }
     /* The packed GPU buffer (328 bytes for the golden asset: tests/data/golden/tiny-gpu.bin). */
     {
         size_t gpuBytes = 0;

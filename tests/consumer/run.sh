@@ -1,19 +1,34 @@
 #!/usr/bin/env bash
-# Builds the runtime on its own (cmake -S runtime: no Embree, OpenEXR, TBB or json involved), installs it
-# into a scratch prefix, builds tests/consumer against it with find_package(nrad), and runs it on the
-# golden asset. Usage: run.sh SOURCE_DIR SCRATCH_DIR
+# Builds the runtime on its own (cmake -S runtime: no Embree, OpenEXR, TBB or json involved), static and
+# shared, installs each into a scratch prefix, builds the C-only tests/consumer against it with
+# find_package(nrad), and runs it on the golden asset. Usage: run.sh SOURCE_DIR SCRATCH_DIR
 set -euo pipefail
 src=$1 scratch=$2
 rm -rf "$scratch"
-cmake -S "$src/runtime" -B "$scratch/runtime" -DCMAKE_BUILD_TYPE=Release > "$scratch.log" 2>&1 || { cat "$scratch.log"; exit 1; }
-cmake --build "$scratch/runtime" >> "$scratch.log" 2>&1 || { cat "$scratch.log"; exit 1; }
-cmake --install "$scratch/runtime" --prefix "$scratch/install" >> "$scratch.log" 2>&1 || { cat "$scratch.log"; exit 1; }
-# The runtime's build must not have looked for any of the baker's dependencies.
-if grep -qiE "embree|openexr|tbb|nlohmann|tinygltf" "$scratch/runtime/CMakeCache.txt"; then
-  echo "the standalone runtime build refers to a baker dependency" >&2; exit 1
-fi
-cmake -S "$src/tests/consumer" -B "$scratch/build" -DCMAKE_PREFIX_PATH="$scratch/install" -DCMAKE_BUILD_TYPE=Release > /dev/null
-cmake --build "$scratch/build" > /dev/null
-ls "$scratch/install/lib"*/cmake/nrad/nradConfigVersion.cmake > /dev/null
-ls "$scratch/install/share/nrad/shaders/nrad.glsl" "$scratch/install/share/nrad/shaders/nrad_evaluate.comp" > /dev/null
-"$scratch/build/consumer" "$src/tests/data/golden/tiny.nrad"
+mkdir -p "$scratch"
+# Static (the default) and shared builds, each installed and consumed by the C-only project.
+for kind in static shared; do
+  shared=OFF; [ "$kind" = shared ] && shared=ON
+  dir="$scratch/$kind"
+  log="$scratch/$kind.log"
+  cmake -S "$src/runtime" -B "$dir/runtime" -DCMAKE_BUILD_TYPE=Release -DBUILD_SHARED_LIBS=$shared > "$log" 2>&1 || { cat "$log"; exit 1; }
+  cmake --build "$dir/runtime" >> "$log" 2>&1 || { cat "$log"; exit 1; }
+  cmake --install "$dir/runtime" --prefix "$dir/install" >> "$log" 2>&1 || { cat "$log"; exit 1; }
+  # The runtime's build must not have looked for any of the baker's dependencies.
+  if grep -qiE "embree|openexr|tbb|nlohmann|tinygltf" "$dir/runtime/CMakeCache.txt"; then
+    echo "the standalone runtime build refers to a baker dependency" >&2; exit 1
+  fi
+  cmake -S "$src/tests/consumer" -B "$dir/build" -DCMAKE_PREFIX_PATH="$dir/install" -DCMAKE_BUILD_TYPE=Release >> "$log" 2>&1 || { cat "$log"; exit 1; }
+  cmake --build "$dir/build" >> "$log" 2>&1 || { cat "$log"; exit 1; }
+  ls "$dir/install/lib"*/cmake/nrad/nradConfigVersion.cmake > /dev/null
+  ls "$dir/install/include/nrad/version.h" > /dev/null
+  ls "$dir/install/share/nrad/shaders/nrad.glsl" "$dir/install/share/nrad/shaders/nrad_evaluate.comp" > /dev/null
+  if [ "$kind" = shared ]; then
+    lib=$(ls "$dir/install/lib"*/libnrad.so.*.*.* | head -1)
+    # Hidden visibility: the C API is all a shared libnrad exports.
+    exported=$(nm -D --defined-only "$lib" | awk '{print $3}' | grep -v '^nrad' || true)
+    if [ -n "$exported" ]; then echo "libnrad.so exports more than the C API:" >&2; echo "$exported" | head >&2; exit 1; fi
+    ldd "$dir/build/consumer" | grep -q "libnrad.so" || { echo "the consumer is not linked to the shared libnrad" >&2; exit 1; }
+  fi
+  "$dir/build/consumer" "$src/tests/data/golden/tiny.nrad"
+done

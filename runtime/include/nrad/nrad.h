@@ -22,13 +22,31 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "nrad/version.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define NRAD_VERSION_MAJOR 0
-#define NRAD_VERSION_MINOR 4
-#define NRAD_VERSION_PATCH 0
+/* Exported symbols: only the functions below leave a shared libnrad (built with hidden visibility). Define
+ * NRAD_SHARED when linking a shared build on Windows (the CMake package does it). */
+#if defined(_WIN32)
+#if defined(NRAD_BUILDING)
+#define NRAD_API __declspec(dllexport)
+#elif defined(NRAD_SHARED)
+#define NRAD_API __declspec(dllimport)
+#else
+#define NRAD_API
+#endif
+#elif defined(__GNUC__) || defined(__clang__)
+#define NRAD_API __attribute__((visibility("default")))
+#else
+#define NRAD_API
+#endif
+
+/* The library's version: NRAD_VERSION_MAJOR/MINOR/PATCH and NRAD_VERSION as compiled against;
+ * nradGetVersion() as linked (major << 22 | minor << 12 | patch). Compatible within a minor version. */
+NRAD_API uint32_t nradGetVersion(void);
 
 typedef struct NradAsset_* NradAsset;
 
@@ -48,7 +66,7 @@ typedef enum NradStatus {
 } NradStatus;
 
 /* A static, human-readable description of a status (never null). */
-const char* nradStatusString(NradStatus status);
+NRAD_API const char* nradStatusString(NradStatus status);
 
 /* ----- loading --------------------------------------------------------------------------------------- */
 
@@ -60,12 +78,12 @@ typedef enum NradLoadFlags {
 /* Loads an asset from `size` bytes at `data`. On success *asset is a new handle; on failure it is null
  * and, if `message` is not null, up to `messageSize` bytes of an explanation are written there
  * (NUL-terminated). Safe on untrusted input. */
-NradStatus nradLoadFromMemory(const void* data, size_t size, uint32_t flags, NradAsset* asset, char* message,
+NRAD_API NradStatus nradLoadFromMemory(const void* data, size_t size, uint32_t flags, NradAsset* asset, char* message,
                               size_t messageSize);
 /* Loads an asset from a file (read whole, then as nradLoadFromMemory with NRAD_LOAD_COPY). */
-NradStatus nradLoadFromFile(const char* path, NradAsset* asset, char* message, size_t messageSize);
+NRAD_API NradStatus nradLoadFromFile(const char* path, NradAsset* asset, char* message, size_t messageSize);
 /* Releases a handle; null is allowed. */
-void nradReleaseAsset(NradAsset asset);
+NRAD_API void nradReleaseAsset(NradAsset asset);
 
 /* ----- queries --------------------------------------------------------------------------------------- */
 
@@ -86,6 +104,7 @@ typedef struct NradAssetInfo {
     float blendBand;           /* with NRAD_CONTENT_BLENDED: half-width of the blending band, in voxels; else 0 */
     uint64_t fileBytes;        /* size of the asset data */
     uint64_t memoryBytes;      /* memory held by the handle */
+    uint32_t reserved[16];     /* zero; later minor versions add fields here, so the struct keeps its size */
 } NradAssetInfo;
 
 /* contentFlags: the radiance returned excludes the surface's own emission (add it when shading). */
@@ -100,13 +119,13 @@ typedef struct NradAssetInfo {
  * the networks of its leaves, nradGetOccupiedVoxel returns leaf indices (docs/format.md, "Partition tree"). */
 #define NRAD_CONTENT_TREE 8u
 
-NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
+NRAD_API NradStatus nradGetAssetInfo(NradAsset asset, NradAssetInfo* info);
 /* Index (x + dims[0] (y + dims[1] z)) of the i-th occupied voxel, i < occupiedVoxels (with NRAD_CONTENT_TREE:
  * the index of its tree leaf). */
-NradStatus nradGetOccupiedVoxel(NradAsset asset, uint32_t i, uint32_t* voxelIndex);
+NRAD_API NradStatus nradGetOccupiedVoxel(NradAsset asset, uint32_t i, uint32_t* voxelIndex);
 /* The metadata JSON (not NUL-terminated) and its length; empty if the asset has none. Valid while the
  * handle lives. */
-NradStatus nradGetMetadata(NradAsset asset, const char** json, size_t* length);
+NRAD_API NradStatus nradGetMetadata(NradAsset asset, const char** json, size_t* length);
 
 /* ----- evaluation ------------------------------------------------------------------------------------ */
 
@@ -121,12 +140,12 @@ enum {
 
 /* Radiance leaving `position` (world space) with shading normal `normal` towards `direction` (both unit
  * length, pointing away from the surface). Writes rgb[3]; `pointFlags` may be null. */
-NradStatus nradEvaluate(NradAsset asset, const float position[3], const float normal[3], const float direction[3],
+NRAD_API NradStatus nradEvaluate(NradAsset asset, const float position[3], const float normal[3], const float direction[3],
                         float rgb[3], uint32_t* pointFlags);
 
 /* Batch, interleaved layout: positions, normals, directions and rgb are `count` x 3 floats (x, y, z, ...).
  * `pointFlags` (count bytes) may be null. Points are grouped by voxel internally where that is faster. */
-NradStatus nradEvaluateBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+NRAD_API NradStatus nradEvaluateBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
                              const float* directions, float* rgb, uint8_t* pointFlags);
 
 /* Batch, structure-of-arrays layout: each pointer is `count` floats. */
@@ -137,7 +156,7 @@ typedef struct NradBatchSoA {
     float* r; float* g; float* b;
     uint8_t* pointFlags; /* may be null */
 } NradBatchSoA;
-NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const NradBatchSoA* batch);
+NRAD_API NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const NradBatchSoA* batch);
 
 /* ----- shading --------------------------------------------------------------------------------------- */
 
@@ -157,7 +176,7 @@ typedef struct NradSurface {
  * reflectance if the asset is demodulated, plus the emission if it stores scattered radiance. Arguments as
  * nradEvaluateBatch, and `surfaces` (count). A point outside the grid or in an empty voxel gets its emission
  * only (and its flag). */
-NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+NRAD_API NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
                           const float* directions, const NradSurface* surfaces, float* rgb, uint8_t* pointFlags);
 
 /* ----- GPU buffers -------------------------------------------------------------------------------------- */
@@ -176,11 +195,11 @@ NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions,
 
 /* Bytes of the packed buffer (a multiple of 4). NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT if the asset exceeds the
  * limits above. */
-NradStatus nradGetGpuBufferSize(NradAsset asset, size_t* bytes);
+NRAD_API NradStatus nradGetGpuBufferSize(NradAsset asset, size_t* bytes);
 /* Writes the packed buffer to `buffer` (4-byte aligned, at least nradGetGpuBufferSize bytes: a mapped
  * staging buffer will do); writes nothing and returns NRAD_ERROR_INVALID_ARGUMENT if `capacity` is smaller or
  * `buffer` is not aligned. Allocates nothing. */
-NradStatus nradPackGpuBuffer(NradAsset asset, void* buffer, size_t capacity);
+NRAD_API NradStatus nradPackGpuBuffer(NradAsset asset, void* buffer, size_t capacity);
 
 /* ----- kernels --------------------------------------------------------------------------------------- */
 
@@ -193,11 +212,11 @@ typedef enum NradKernel {
 
 /* Chooses the evaluation kernel for this process (for testing and measurement). Fails with
  * NRAD_ERROR_UNSUPPORTED_KERNEL if this CPU cannot run it. Not concurrent with evaluation. */
-NradStatus nradSelectKernel(NradKernel kernel);
+NRAD_API NradStatus nradSelectKernel(NradKernel kernel);
 /* The kernel evaluation uses now (never NRAD_KERNEL_AUTO). */
-NradKernel nradActiveKernel(void);
+NRAD_API NradKernel nradActiveKernel(void);
 /* Nonzero if this CPU and build can run `kernel`. */
-int nradKernelSupported(NradKernel kernel);
+NRAD_API int nradKernelSupported(NradKernel kernel);
 
 #ifdef __cplusplus
 }
