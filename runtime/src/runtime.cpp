@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <new>
@@ -187,15 +188,83 @@ rt::BlockDriver blockDriver(NradKernel k, int& width) {
     return nullptr;
 }
 
-// Evaluations left to the grouped pass: point, network, weight and the point's position in the network's
-// voxel. The SIMD block driver fills the first entries (at most one per point) through rt::Deferred;
-// locateOne appends up to eval::kMaxSupports per point.
+// ----- scratch: everything evaluation needs besides the caller's arrays --------------------------------------
+
+// Evaluation works on tiles of at most kTilePoints points; a tile's deferred entries (point, network, weight,
+// position in the network's cell) number at most kMaxSupports per point. All of it lives in one block of
+// memory carved into the arrays below: the caller's (nradGetScratchSize), or a per-thread block allocated
+// once through the allocator hook and reused.
+constexpr size_t kTilePoints = 1024;
+constexpr size_t kTileEntries = kTilePoints * eval::kMaxSupports;
+// Up to this many entries are ordered by insertion sort; beyond, by a counting sort over the networks when
+// they are no more than the entries, else by sorting (network, entry) keys.
+constexpr size_t kSmallBatchEntries = 64;
+
 struct Scratch {
-    std::vector<uint32_t> blocks, index, order, start;
-    std::vector<int32_t> network;
-    std::vector<float> local;  // 3 per entry
-    std::vector<float> weight;
+    uint32_t* blocks;  // kTilePoints
+    uint32_t* index;  // kTileEntries each, then
+    int32_t* network;
+    float* weight;
+    uint32_t* order;
+    uint64_t* keys;
+    float* local;  // 3 x kTileEntries
+    uint32_t* start;  // kTileEntries + 1 (counting sort)
+    size_t entries;
 };
+
+constexpr size_t kScratchBytes =
+    kTilePoints * 4 + kTileEntries * (4 + 4 + 4 + 4 + 8 + 12) + (kTileEntries + 1) * 4 + 64;  // + alignment
+
+Scratch carveScratch(void* memory) {
+    auto at = reinterpret_cast<uintptr_t>(memory);
+    at = (at + 63) & ~uintptr_t(63);
+    auto take = [&](size_t bytes) {
+        void* p = reinterpret_cast<void*>(at);
+        at += bytes;
+        return p;
+    };
+    Scratch s;
+    s.keys = static_cast<uint64_t*>(take(kTileEntries * 8));  // 8-byte aligned first
+    s.blocks = static_cast<uint32_t*>(take(kTilePoints * 4));
+    s.index = static_cast<uint32_t*>(take(kTileEntries * 4));
+    s.network = static_cast<int32_t*>(take(kTileEntries * 4));
+    s.weight = static_cast<float*>(take(kTileEntries * 4));
+    s.order = static_cast<uint32_t*>(take(kTileEntries * 4));
+    s.local = static_cast<float*>(take(kTileEntries * 12));
+    s.start = static_cast<uint32_t*>(take((kTileEntries + 1) * 4));
+    s.entries = 0;
+    return s;
+}
+
+// ----- the allocator hook ---------------------------------------------------------------------------------------
+
+void* defaultAllocate(size_t bytes, void*) { return std::malloc(bytes); }
+void defaultFree(void* p, void*) { std::free(p); }
+std::atomic<NradAllocateFunction> gAllocate{defaultAllocate};
+std::atomic<NradFreeFunction> gFree{defaultFree};
+std::atomic<void*> gAllocatorUser{nullptr};
+
+// The calling thread's scratch, allocated through the hook on its first evaluation without caller scratch
+// and released when the thread ends (through the hook it was allocated with).
+struct ThreadScratch {
+    void* memory = nullptr;
+    NradFreeFunction release = nullptr;
+    void* user = nullptr;
+    ~ThreadScratch() {
+        if (memory) release(memory, user);
+    }
+    void* get() {
+        if (!memory) {
+            user = gAllocatorUser.load();
+            release = gFree.load();
+            memory = gAllocate.load()(kScratchBytes, user);
+            if (!memory) throw std::bad_alloc();
+        }
+        return memory;
+    }
+};
+
+// ----- evaluation of one tile -------------------------------------------------------------------------------------
 
 // Locates point i one at a time (the reference path): its supports join the deferred entries; a point
 // without any gets zero radiance and its flag.
@@ -217,39 +286,18 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
         return;
     }
     for (int k = 0; k < count; ++k) {
-        s.index.push_back(uint32_t(i));
-        s.network.push_back(networkOf(a, sup[k].voxel));
-        s.weight.push_back(sup[k].weight);
-        s.local.insert(s.local.end(), sup[k].local, sup[k].local + 3);
+        const size_t e = s.entries++;
+        s.index[e] = uint32_t(i);
+        s.network[e] = networkOf(a, sup[k].voxel);
+        s.weight[e] = sup[k].weight;
+        for (int c = 0; c < 3; ++c) s.local[3 * e + size_t(c)] = sup[k].local[c];
     }
 }
 
-// Up to this many deferred entries are ordered by sorting them rather than by a counting sort over every network.
-constexpr size_t kSmallBatchEntries = 64;
-
-NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v) {
-    // Entry indices are 32-bit and a point makes up to eval::kMaxSupports entries: split huge batches.
-    constexpr size_t kMaxBatch = UINT32_MAX / eval::kMaxSupports;
-    if (count > kMaxBatch) {
-        for (size_t first = 0; first < count; first += kMaxBatch) {
-            rt::BatchIo part = v;
-            for (int c = 0; c < 3; ++c) {
-                part.p[c] += first * v.stride;
-                part.n[c] += first * v.stride;
-                part.d[c] += first * v.stride;
-                part.out[c] += first * v.stride;
-            }
-            if (part.flags) part.flags += first;
-            evaluateBatch(a, std::min<size_t>(kMaxBatch, count - first), part);
-        }
-        return NRAD_OK;
-    }
-    thread_local Scratch s;
+// At most kTilePoints points.
+void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scratch& s) {
     const size_t nets = a.asset.voxels.size();
-    s.index.resize(count);
-    s.network.resize(count);
-    s.local.resize(count * 3);
-    rt::Deferred def{nullptr, 0, s.index.data(), s.network.data(), s.local.data(), 0, 0};
+    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0};
     const NradKernel kind = activeKernel();
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
@@ -263,8 +311,6 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     rt::BlockDriver driver = a.denseLookup.empty() || !a.partition.tree.empty() ? nullptr : blockDriver(kind, width);
     size_t blocks = driver ? count / size_t(width) : 0;
     if (blocks > 0) {
-        s.blocks.resize(blocks);
-        def.blocks = s.blocks.data();
         rt::BlockContext ctx{};
         const format::Grid& g = a.asset.grid;
         for (int k = 0; k < 3; ++k) {
@@ -284,30 +330,30 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
     }
     // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
     //    tail.
-    s.index.resize(def.count);
-    s.network.resize(def.count);
-    s.local.resize(def.count * 3);
-    s.weight.assign(def.count, 1.0f);
+    for (size_t e = 0; e < def.count; ++e) s.weight[e] = 1.0f;
+    s.entries = def.count;
     for (size_t b = 0; b < def.blockCount; ++b)
         for (size_t i = size_t(def.blocks[b]) * size_t(width), end = i + size_t(width); i < end; ++i) locateOne(a, v, i, s);
     for (size_t i = blocks * size_t(width); i < count; ++i) locateOne(a, v, i, s);
-    const size_t entries = s.index.size();
-    if (entries == 0) return NRAD_OK;
+    const size_t entries = s.entries;
+    if (entries == 0) return;
 
     // 3. Order the deferred entries by network, stably, so every chunk runs one network and each point's
-    //    supports are summed in network order, which is their voxel order (eval.h): a counting sort for big
-    //    batches, a sort of the entries themselves for small ones (a single point costs the same whatever
-    //    the number of networks).
-    s.order.resize(entries);
+    //    supports are summed in network order, which is their voxel order (eval.h). The cost never depends on
+    //    the number of networks beyond the entries (a single point costs the same whatever the asset).
     if (entries <= kSmallBatchEntries) {
         for (size_t e = 0; e < entries; ++e) s.order[e] = uint32_t(e);
         for (size_t e = 1; e < entries; ++e)  // insertion sort: stable, and entries are few
             for (size_t j = e; j > 0 && s.network[s.order[j - 1]] > s.network[s.order[j]]; --j) std::swap(s.order[j - 1], s.order[j]);
-    } else {
-        s.start.assign(nets + 1, 0);
+    } else if (nets <= entries) {
+        std::fill(s.start, s.start + nets + 1, 0u);
         for (size_t e = 0; e < entries; ++e) ++s.start[size_t(s.network[e]) + 1];
         for (size_t k = 0; k < nets; ++k) s.start[k + 1] += s.start[k];
         for (size_t e = 0; e < entries; ++e) s.order[s.start[size_t(s.network[e])]++] = uint32_t(e);
+    } else {
+        for (size_t e = 0; e < entries; ++e) s.keys[e] = uint64_t(uint32_t(s.network[e])) << 32 | e;  // (network, entry): stable
+        std::sort(s.keys, s.keys + entries);
+        for (size_t e = 0; e < entries; ++e) s.order[e] = uint32_t(s.keys[e]);
     }
     // 4. Run each network's entries in chunks: gather SoA inputs, evaluate (output transform included),
     //    accumulate the weighted radiance into the zeroed outputs.
@@ -344,6 +390,23 @@ NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v
             }
         }
         runStart = runEnd;
+    }
+}
+
+// A batch, tile by tile, in `scratch` (kScratchBytes), or the calling thread's scratch when null.
+NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v, void* scratch = nullptr) {
+    thread_local ThreadScratch own;
+    Scratch s = carveScratch(scratch ? scratch : own.get());
+    for (size_t first = 0; first < count; first += kTilePoints) {
+        rt::BatchIo part = v;
+        for (int c = 0; c < 3; ++c) {
+            part.p[c] += first * v.stride;
+            part.n[c] += first * v.stride;
+            part.d[c] += first * v.stride;
+            part.out[c] += first * v.stride;
+        }
+        if (part.flags) part.flags += first;
+        evaluateTile(a, std::min(kTilePoints, count - first), part, s);
     }
     return NRAD_OK;
 }
@@ -636,6 +699,15 @@ NradStatus nradPackGpuBuffer(NradAsset a, void* buffer, size_t capacity) {
     gpu::pack(*a, l, static_cast<uint32_t*>(buffer));
     return NRAD_OK;
 }
+
+void nradSetAllocator(NradAllocateFunction allocate, NradFreeFunction release, void* user) {
+    const bool both = allocate && release;
+    gAllocate.store(both ? allocate : defaultAllocate);
+    gFree.store(both ? release : defaultFree);
+    gAllocatorUser.store(both ? user : nullptr);
+}
+
+size_t nradGetScratchSize(void) { return kScratchBytes; }
 
 NradStatus nradSelectKernel(NradKernel kernel) {
     if (kernel == NRAD_KERNEL_AUTO) {

@@ -179,6 +179,20 @@ typedef struct NradSurface {
 NRAD_API NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
                           const float* directions, const NradSurface* surfaces, float* rgb, uint8_t* pointFlags);
 
+/* ----- memory ------------------------------------------------------------------------------------------ */
+
+/* Evaluation allocates nothing once a thread has its scratch: a block of nradGetScratchSize() bytes, either
+ * passed by the caller (nradShadeGBuffer) or allocated once per thread, on the thread's first evaluation,
+ * through the allocator below (malloc/free by default) and released when the thread ends. Loading an asset
+ * allocates through the C++ standard library. */
+typedef void* (*NradAllocateFunction)(size_t bytes, void* user);
+typedef void (*NradFreeFunction)(void* memory, void* user);
+/* Sets the allocator for per-thread scratch (null functions restore malloc/free). Not concurrent with
+ * evaluation; memory is released through the function it was allocated with. */
+NRAD_API void nradSetAllocator(NradAllocateFunction allocate, NradFreeFunction release, void* user);
+/* Bytes of scratch any evaluation call needs, whatever the batch size or asset (evaluation works in tiles). */
+NRAD_API size_t nradGetScratchSize(void);
+
 /* ----- GPU buffers -------------------------------------------------------------------------------------- */
 
 /* The asset packed for shading on a GPU: one buffer of little-endian 32-bit words that an engine uploads as a
