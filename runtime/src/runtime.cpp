@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <new>
 #include <string>
 #include <vector>
@@ -215,6 +216,14 @@ struct Scratch {
 constexpr size_t kScratchBytes =
     kTilePoints * 4 + kTileEntries * (4 + 4 + 4 + 4 + 8 + 12) + (kTileEntries + 1) * 4 + 64;  // + alignment
 
+// A tile's fp32 copy of the G-buffer: what nradShadeGBuffer converts into before evaluating (after the
+// evaluation scratch in the same block).
+struct GBufferTile {
+    float p[3 * kTilePoints], n[3 * kTilePoints], d[3 * kTilePoints], rgb[3 * kTilePoints];
+    uint8_t flags[kTilePoints];
+};
+constexpr size_t kGBufferScratchBytes = sizeof(GBufferTile) + 64;
+
 Scratch carveScratch(void* memory) {
     auto at = reinterpret_cast<uintptr_t>(memory);
     at = (at + 63) & ~uintptr_t(63);
@@ -257,7 +266,7 @@ struct ThreadScratch {
         if (!memory) {
             user = gAllocatorUser.load();
             release = gFree.load();
-            memory = gAllocate.load()(kScratchBytes, user);
+            memory = gAllocate.load()(kScratchBytes + kGBufferScratchBytes, user);
             if (!memory) throw std::bad_alloc();
         }
         return memory;
@@ -502,6 +511,95 @@ void pack(const NradAsset_& a, const Layout& l, uint32_t* w) {
 }
 }  // namespace gpu
 
+// ----- shading and G-buffers -------------------------------------------------------------------------------------
+
+// The final radiance of one point from what the asset returned there (nradShadeBatch's contract).
+void shadeOne(const NradAsset_& a, const NradSurface& in, const float n[3], const float d[3], float rgb[3]) {
+    eval::Surface s;
+    for (int c = 0; c < 3; ++c) {
+        s.baseColor[c] = in.baseColor[c];
+        s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
+    }
+    s.metallic = in.metallic;
+    s.roughness = in.roughness;
+    s.specular = in.specular;
+    const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+    float out[3];
+    eval::shade(a.asset.header.flags, rgb, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+    for (int c = 0; c < 3; ++c) rgb[c] = std::isfinite(out[c]) ? out[c] : 0.0f;
+}
+
+void read3(const NradAttribute& at, size_t i, float out[3]) {
+    const bool half = at.format == NRAD_FORMAT_F16;
+    const uint8_t* p = static_cast<const uint8_t*>(at.data) + i * (at.stride ? at.stride : (half ? 6 : 12));
+    if (!half) {
+        std::memcpy(out, p, 12);
+        return;
+    }
+    uint16_t h[3];
+    std::memcpy(h, p, 6);
+    for (int k = 0; k < 3; ++k) out[k] = format::halfToFloat(h[k]);
+}
+
+// v / |v|, or NaN (an invalid input) where v is zero or not finite.
+void normalise(float v[3]) {
+    const float len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    if (len2 > 0.0f && std::isfinite(len2)) {
+        const float inv = 1.0f / std::sqrt(len2);
+        for (int k = 0; k < 3; ++k) v[k] *= inv;
+    } else {
+        v[0] = v[1] = v[2] = std::numeric_limits<float>::quiet_NaN();
+    }
+}
+
+void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
+    Scratch s = carveScratch(scratch);
+    auto tileAt = (reinterpret_cast<uintptr_t>(scratch) + kScratchBytes + 63) & ~uintptr_t(63);
+    GBufferTile& t = *reinterpret_cast<GBufferTile*>(tileAt);
+    const bool eye = (g.flags & NRAD_GBUFFER_EYE) != 0, unit = (g.flags & NRAD_GBUFFER_UNIT_VECTORS) != 0;
+    const bool half = g.outputFormat == NRAD_FORMAT_F16;
+    const size_t channels = g.outputChannels, outStride = g.outputStride ? g.outputStride : channels * (half ? 2 : 4);
+    const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
+    for (size_t first = 0; first < g.count; first += kTilePoints) {
+        const size_t n = std::min(kTilePoints, g.count - first);
+        for (size_t j = 0; j < n; ++j) {
+            float* p = t.p + 3 * j;
+            float* nrm = t.n + 3 * j;
+            float* d = t.d + 3 * j;
+            read3(g.position, first + j, p);
+            read3(g.normal, first + j, nrm);
+            if (eye)
+                for (int k = 0; k < 3; ++k) d[k] = g.eye[k] - p[k];
+            else
+                read3(g.direction, first + j, d);
+            if (!unit || eye) normalise(d);
+            if (!unit) normalise(nrm);
+        }
+        const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
+                            {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : t.flags};
+        evaluateTile(a, n, v, s);
+        for (size_t j = 0; j < n; ++j) {
+            float* rgb = t.rgb + 3 * j;
+            if (g.surfaces) {
+                const auto* surface = reinterpret_cast<const NradSurface*>(static_cast<const uint8_t*>(static_cast<const void*>(g.surfaces)) +
+                                                                           (first + j) * surfaceStride);
+                NradSurface copy;
+                std::memcpy(&copy, surface, sizeof copy);  // any alignment
+                shadeOne(a, copy, t.n + 3 * j, t.d + 3 * j, rgb);
+            }
+            uint8_t* out = static_cast<uint8_t*>(g.output) + (first + j) * outStride;
+            const float rgba[4] = {rgb[0], rgb[1], rgb[2], 1.0f};
+            if (half) {
+                uint16_t h[4];
+                for (size_t c = 0; c < channels; ++c) h[c] = format::floatToHalf(rgba[c]);
+                std::memcpy(out, h, channels * 2);
+            } else {
+                std::memcpy(out, rgba, channels * 4);
+            }
+        }
+    }
+}
+
 template <typename F>
 NradStatus guarded(F&& f) {
     try {
@@ -660,24 +758,23 @@ NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, con
                       {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
         NradStatus st = evaluateBatch(*a, count, v);
         if (st != NRAD_OK) return st;
-        const uint32_t flags = a->asset.header.flags;
-        for (size_t i = 0; i < count; ++i) {
-            eval::Surface s;
-            const NradSurface& in = surfaces[i];
-            for (int c = 0; c < 3; ++c) {
-                s.baseColor[c] = in.baseColor[c];
-                s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
-            }
-            s.metallic = in.metallic;
-            s.roughness = in.roughness;
-            s.specular = in.specular;
-            const float* n = normals + 3 * i;
-            const float* d = directions + 3 * i;
-            const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
-            float out[3];
-            eval::shade(flags, rgb + 3 * i, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
-            for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
-        }
+        for (size_t i = 0; i < count; ++i) shadeOne(*a, surfaces[i], normals + 3 * i, directions + 3 * i, rgb + 3 * i);
+        return NRAD_OK;
+    });
+}
+
+NradStatus nradShadeGBuffer(NradAsset a, const NradGBuffer* g, void* scratch, size_t scratchBytes) {
+    if (!a || !g || g->structSize != sizeof(NradGBuffer)) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (g->count == 0) return NRAD_OK;
+    const bool eye = (g->flags & NRAD_GBUFFER_EYE) != 0;
+    auto valid = [](const NradAttribute& at) { return at.data && at.format <= NRAD_FORMAT_F16; };
+    if ((g->flags & ~(NRAD_GBUFFER_EYE | NRAD_GBUFFER_UNIT_VECTORS)) || !valid(g->position) || !valid(g->normal) ||
+        (!eye && !valid(g->direction)) || !g->output || g->outputFormat > NRAD_FORMAT_F16 ||
+        (g->outputChannels != 3 && g->outputChannels != 4) || (scratch && scratchBytes < kScratchBytes + kGBufferScratchBytes))
+        return NRAD_ERROR_INVALID_ARGUMENT;
+    return guarded([&] {
+        thread_local ThreadScratch own;
+        shadeGBuffer(*a, *g, scratch ? scratch : own.get());
         return NRAD_OK;
     });
 }
@@ -707,7 +804,7 @@ void nradSetAllocator(NradAllocateFunction allocate, NradFreeFunction release, v
     gAllocatorUser.store(both ? user : nullptr);
 }
 
-size_t nradGetScratchSize(void) { return kScratchBytes; }
+size_t nradGetScratchSize(void) { return kScratchBytes + kGBufferScratchBytes; }
 
 NradStatus nradSelectKernel(NradKernel kernel) {
     if (kernel == NRAD_KERNEL_AUTO) {

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <cstring>
 #include <new>
 #include <thread>
 
@@ -89,6 +90,34 @@ TEST(RuntimeMemory, EvaluationAllocatesNothingAndScratchGoesThroughTheHook) {
         EXPECT_EQ(hook.bytes.load(), nradGetScratchSize());
         EXPECT_EQ(hook.frees.load(), 1u) << "released at thread exit";
         EXPECT_LT(nradGetScratchSize(), size_t(1) << 20) << "bounded, whatever the batch size";
+
+        // With the caller's scratch, a G-buffer call allocates nothing at all, not even the thread's scratch.
+        std::vector<uint8_t> scratch(nradGetScratchSize());
+        std::vector<uint16_t> half(4 * n);
+        NradGBuffer g;
+        std::memset(&g, 0, sizeof g);
+        g.structSize = sizeof g;
+        g.count = n;
+        g.position = {p.data(), 0, NRAD_FORMAT_F32};
+        g.normal = {nrm.data(), 0, NRAD_FORMAT_F32};
+        g.direction = {d.data(), 0, NRAD_FORMAT_F32};
+        g.surfaces = surfaces.data();
+        g.output = half.data();
+        g.outputFormat = NRAD_FORMAT_F16;
+        g.outputChannels = 4;
+        Hook untouched;
+        nradSetAllocator(countingAllocate, countingFree, &untouched);
+        std::thread gbuffer([&] {
+            gNews = 0;
+            gCounting = true;
+            EXPECT_EQ(nradShadeGBuffer(asset.get(), &g, scratch.data(), scratch.size()), NRAD_OK);
+            gCounting = false;
+            news = gNews;
+        });
+        gbuffer.join();
+        nradSetAllocator(nullptr, nullptr, nullptr);
+        EXPECT_EQ(news, 0u);
+        EXPECT_EQ(untouched.allocations.load(), 0u);
     }
 }
 

@@ -190,7 +190,8 @@ typedef void (*NradFreeFunction)(void* memory, void* user);
 /* Sets the allocator for per-thread scratch (null functions restore malloc/free). Not concurrent with
  * evaluation; memory is released through the function it was allocated with. */
 NRAD_API void nradSetAllocator(NradAllocateFunction allocate, NradFreeFunction release, void* user);
-/* Bytes of scratch any evaluation call needs, whatever the batch size or asset (evaluation works in tiles). */
+/* Bytes of scratch any evaluation call needs, whatever the batch size or asset (evaluation works in tiles of
+ * 1,024 points); nradShadeGBuffer takes it from the caller. */
 NRAD_API size_t nradGetScratchSize(void);
 
 /* ----- GPU buffers -------------------------------------------------------------------------------------- */
@@ -214,6 +215,46 @@ NRAD_API NradStatus nradGetGpuBufferSize(NradAsset asset, size_t* bytes);
  * staging buffer will do); writes nothing and returns NRAD_ERROR_INVALID_ARGUMENT if `capacity` is smaller or
  * `buffer` is not aligned. Allocates nothing. */
 NRAD_API NradStatus nradPackGpuBuffer(NradAsset asset, void* buffer, size_t capacity);
+
+/* ----- G-buffers --------------------------------------------------------------------------------------- */
+
+/* What a G-buffer's channels hold, read as they are: fp32 or fp16 (IEEE binary16) values. */
+typedef enum NradFormat { NRAD_FORMAT_F32 = 0, NRAD_FORMAT_F16 = 1 } NradFormat;
+
+/* Three values per point (x, y, z) in `format`, point i at (const char*)data + i * stride. */
+typedef struct NradAttribute {
+    const void* data;
+    size_t stride;   /* bytes from one point to the next; 0: tightly packed (12 bytes fp32, 6 fp16) */
+    uint32_t format; /* NradFormat */
+} NradAttribute;
+
+#define NRAD_GBUFFER_EYE 1u          /* directions from `eye`: normalize(eye - position); `direction` unused */
+#define NRAD_GBUFFER_UNIT_VECTORS 2u /* normals and directions are unit length already: not normalised */
+
+/* A G-buffer (or any batch of surface points) as an engine holds it. Normals and directions are normalised on
+ * input unless NRAD_GBUFFER_UNIT_VECTORS; a zero or non-finite one makes the point NRAD_POINT_INVALID_INPUT. */
+typedef struct NradGBuffer {
+    uint32_t structSize;          /* sizeof(NradGBuffer) of the header compiled against */
+    uint32_t flags;               /* NRAD_GBUFFER_* */
+    size_t count;                 /* points */
+    NradAttribute position;       /* world space */
+    NradAttribute normal;         /* shading normal, on the viewer's side */
+    NradAttribute direction;      /* towards the viewer (unused with NRAD_GBUFFER_EYE) */
+    float eye[3];                 /* the camera position, with NRAD_GBUFFER_EYE */
+    const NradSurface* surfaces;  /* null: the output is what the asset stores (nradEvaluateBatch); else the shaded
+                                     radiance (nradShadeBatch) from these material terms */
+    size_t surfaceStride;         /* bytes from one surface to the next; 0: sizeof(NradSurface) */
+    void* output;                 /* RGB or RGBA (alpha 1) per point */
+    size_t outputStride;          /* bytes; 0: tightly packed */
+    uint32_t outputFormat;        /* NradFormat: fp16 rounds to nearest even and saturates at 65504 */
+    uint32_t outputChannels;      /* 3 or 4 */
+    uint8_t* pointFlags;          /* NRAD_POINT_* per point; may be null */
+} NradGBuffer;
+
+/* Evaluates or shades a G-buffer. `scratch` (at least nradGetScratchSize() bytes, any alignment) makes the
+ * call allocate nothing at all; null uses the calling thread's scratch. Results equal nradEvaluateBatch /
+ * nradShadeBatch on the same values converted to fp32, bit for bit before the output's own rounding. */
+NRAD_API NradStatus nradShadeGBuffer(NradAsset asset, const NradGBuffer* gbuffer, void* scratch, size_t scratchBytes);
 
 /* ----- kernels --------------------------------------------------------------------------------------- */
 
