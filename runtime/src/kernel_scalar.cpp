@@ -17,4 +17,12 @@ void evalChunkScalar(const NetworkView& net, const float* x, float* y, int count
     }
 }
 
+void halfToFloatScalar(const uint16_t* in, float* out, size_t n) {
+    for (size_t i = 0; i < n; ++i) out[i] = format::halfToFloat(in[i]);
+}
+
+void floatToHalfScalar(const float* in, uint16_t* out, size_t n) {
+    for (size_t i = 0; i < n; ++i) out[i] = format::floatToHalf(in[i]);
+}
+
 }  // namespace nrad::rt

@@ -47,6 +47,17 @@ void evalChunkAvx2(const NetworkView& net, const float* x, float* y, int count);
 void evalChunkAvx512(const NetworkView& net, const float* x, float* y, int count);
 #endif
 
+// fp16 <-> fp32 for G-buffers, n values: exactly format::halfToFloat / floatToHalf for the values these see
+// (FloatToHalf's inputs are radiance: finite, >= 0; it saturates at 65504 as format::floatToHalf does).
+using HalfToFloat = void (*)(const uint16_t* in, float* out, size_t n);
+using FloatToHalf = void (*)(const float* in, uint16_t* out, size_t n);
+void halfToFloatScalar(const uint16_t* in, float* out, size_t n);
+void floatToHalfScalar(const float* in, uint16_t* out, size_t n);
+#if defined(__x86_64__) || defined(_M_X64)
+void halfToFloatF16c(const uint16_t* in, float* out, size_t n);  // AVX2 + F16C
+void floatToHalfF16c(const float* in, uint16_t* out, size_t n);
+#endif
+
 // ----- whole batches, a vector of points at a time (the SIMD kernels only) -----------------------------
 
 // The grid as locate() in runtime.cpp uses it; `dense` maps every voxel to its network or -1.

@@ -220,6 +220,8 @@ constexpr size_t kScratchBytes =
 // evaluation scratch in the same block).
 struct GBufferTile {
     float p[3 * kTilePoints], n[3 * kTilePoints], d[3 * kTilePoints], rgb[3 * kTilePoints];
+    float color[4 * kTilePoints];  // the output's channels in fp32
+    uint16_t halves[4 * kTilePoints];  // fp16 staging, in and out
     uint8_t flags[kTilePoints];
 };
 constexpr size_t kGBufferScratchBytes = sizeof(GBufferTile) + 64;
@@ -529,18 +531,6 @@ void shadeOne(const NradAsset_& a, const NradSurface& in, const float n[3], cons
     for (int c = 0; c < 3; ++c) rgb[c] = std::isfinite(out[c]) ? out[c] : 0.0f;
 }
 
-void read3(const NradAttribute& at, size_t i, float out[3]) {
-    const bool half = at.format == NRAD_FORMAT_F16;
-    const uint8_t* p = static_cast<const uint8_t*>(at.data) + i * (at.stride ? at.stride : (half ? 6 : 12));
-    if (!half) {
-        std::memcpy(out, p, 12);
-        return;
-    }
-    uint16_t h[3];
-    std::memcpy(h, p, 6);
-    for (int k = 0; k < 3; ++k) out[k] = format::halfToFloat(h[k]);
-}
-
 // v / |v|, or NaN (an invalid input) where v is zero or not finite.
 void normalise(float v[3]) {
     const float len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
@@ -552,51 +542,98 @@ void normalise(float v[3]) {
     }
 }
 
+// fp16 conversions: F16C where the CPU has it (and a vector kernel is in use), else the format's scalar ones.
+struct HalfConverters {
+    rt::HalfToFloat toFloat;
+    rt::FloatToHalf toHalf;
+};
+HalfConverters halfConverters() {
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+    static const bool f16c = cpuHas(NRAD_KERNEL_AVX2) && __builtin_cpu_supports("f16c");
+    if (f16c && activeKernel() != NRAD_KERNEL_SCALAR) return {rt::halfToFloatF16c, rt::floatToHalfF16c};
+#endif
+    return {rt::halfToFloatScalar, rt::floatToHalfScalar};
+}
+
+// Points [first, first + n) of an attribute into 3 n floats (`staging`: 3 n halves of room).
+void gather(const NradAttribute& at, size_t first, size_t n, float* out, uint16_t* staging, const HalfConverters& conv) {
+    const bool half = at.format == NRAD_FORMAT_F16;
+    const size_t size = half ? 6 : 12, stride = at.stride ? at.stride : size;
+    const uint8_t* src = static_cast<const uint8_t*>(at.data) + first * stride;
+    void* dst = half ? static_cast<void*>(staging) : static_cast<void*>(out);
+    auto* d = static_cast<uint8_t*>(dst);
+    if (stride == size)
+        std::memcpy(dst, src, n * size);
+    else if (half)  // constant sizes: the copies become plain moves
+        for (size_t j = 0; j < n; ++j) std::memcpy(d + j * 6, src + j * stride, 6);
+    else
+        for (size_t j = 0; j < n; ++j) std::memcpy(d + j * 12, src + j * stride, 12);
+    if (half) conv.toFloat(staging, out, 3 * n);
+}
+
+// n pixels of `size` bytes from `packed` to `out`, `stride` bytes apart.
+template <size_t kSize>
+void scatterPixels(const uint8_t* packed, uint8_t* out, size_t stride, size_t n) {
+    for (size_t j = 0; j < n; ++j) std::memcpy(out + j * stride, packed + j * kSize, kSize);
+}
+
 void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     Scratch s = carveScratch(scratch);
     auto tileAt = (reinterpret_cast<uintptr_t>(scratch) + kScratchBytes + 63) & ~uintptr_t(63);
     GBufferTile& t = *reinterpret_cast<GBufferTile*>(tileAt);
+    const HalfConverters conv = halfConverters();
     const bool eye = (g.flags & NRAD_GBUFFER_EYE) != 0, unit = (g.flags & NRAD_GBUFFER_UNIT_VECTORS) != 0;
     const bool half = g.outputFormat == NRAD_FORMAT_F16;
-    const size_t channels = g.outputChannels, outStride = g.outputStride ? g.outputStride : channels * (half ? 2 : 4);
+    const size_t channels = g.outputChannels, pixel = channels * (half ? 2 : 4);
+    const size_t outStride = g.outputStride ? g.outputStride : pixel;
     const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
     for (size_t first = 0; first < g.count; first += kTilePoints) {
         const size_t n = std::min(kTilePoints, g.count - first);
-        for (size_t j = 0; j < n; ++j) {
-            float* p = t.p + 3 * j;
-            float* nrm = t.n + 3 * j;
-            float* d = t.d + 3 * j;
-            read3(g.position, first + j, p);
-            read3(g.normal, first + j, nrm);
-            if (eye)
-                for (int k = 0; k < 3; ++k) d[k] = g.eye[k] - p[k];
-            else
-                read3(g.direction, first + j, d);
-            if (!unit || eye) normalise(d);
-            if (!unit) normalise(nrm);
-        }
+        gather(g.position, first, n, t.p, t.halves, conv);
+        gather(g.normal, first, n, t.n, t.halves, conv);
+        if (!eye) gather(g.direction, first, n, t.d, t.halves, conv);
+        if (eye || !unit)
+            for (size_t j = 0; j < n; ++j) {
+                float* d = t.d + 3 * j;
+                if (eye)
+                    for (int k = 0; k < 3; ++k) d[k] = g.eye[k] - t.p[3 * j + size_t(k)];
+                normalise(d);
+                if (!unit) normalise(t.n + 3 * j);
+            }
         const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
                             {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : t.flags};
         evaluateTile(a, n, v, s);
+        // The output's channels in fp32, shaded where asked, then converted and stored with the output's stride.
         for (size_t j = 0; j < n; ++j) {
             float* rgb = t.rgb + 3 * j;
             if (g.surfaces) {
-                const auto* surface = reinterpret_cast<const NradSurface*>(static_cast<const uint8_t*>(static_cast<const void*>(g.surfaces)) +
-                                                                           (first + j) * surfaceStride);
-                NradSurface copy;
-                std::memcpy(&copy, surface, sizeof copy);  // any alignment
-                shadeOne(a, copy, t.n + 3 * j, t.d + 3 * j, rgb);
+                NradSurface surface;  // any alignment
+                std::memcpy(&surface, reinterpret_cast<const uint8_t*>(g.surfaces) + (first + j) * surfaceStride, sizeof surface);
+                shadeOne(a, surface, t.n + 3 * j, t.d + 3 * j, rgb);
             }
-            uint8_t* out = static_cast<uint8_t*>(g.output) + (first + j) * outStride;
-            const float rgba[4] = {rgb[0], rgb[1], rgb[2], 1.0f};
-            if (half) {
-                uint16_t h[4];
-                for (size_t c = 0; c < channels; ++c) h[c] = format::floatToHalf(rgba[c]);
-                std::memcpy(out, h, channels * 2);
-            } else {
-                std::memcpy(out, rgba, channels * 4);
-            }
+            float* c = t.color + channels * j;
+            c[0] = rgb[0];
+            c[1] = rgb[1];
+            c[2] = rgb[2];
+            if (channels == 4) c[3] = 1.0f;
         }
+        const void* packed = t.color;
+        if (half) {
+            conv.toHalf(t.color, t.halves, channels * n);
+            packed = t.halves;
+        }
+        uint8_t* out = static_cast<uint8_t*>(g.output) + first * outStride;
+        const auto* bytes = static_cast<const uint8_t*>(packed);
+        if (outStride == pixel)
+            std::memcpy(out, packed, n * pixel);
+        else if (pixel == 6)
+            scatterPixels<6>(bytes, out, outStride, n);
+        else if (pixel == 8)
+            scatterPixels<8>(bytes, out, outStride, n);
+        else if (pixel == 12)
+            scatterPixels<12>(bytes, out, outStride, n);
+        else
+            scatterPixels<16>(bytes, out, outStride, n);
     }
 }
 

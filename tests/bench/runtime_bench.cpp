@@ -195,6 +195,63 @@ int main(int argc, char** argv) {
         nradSelectKernel(NRAD_KERNEL_AUTO);
     }
 
+    // A G-buffer as an engine holds it: a 1920 x 1080 frame of texels (position fp32, normal and direction
+    // fp16, padded), the coherent points above in raster order, shaded in 64 x 64 tiles through
+    // nradShadeGBuffer (evaluate only) into RGBA fp16, each call with its own scratch; against nradEvaluateBatch
+    // on the same points in fp32, interleaved, in the same tiles.
+    {
+        struct Texel {
+            float position[3];
+            uint16_t normal[4], direction[4];
+        };
+        const size_t w = 1920, h = 1080, frame = w * h;
+        Points pts = makePoints(frame, true, a.grid, 7);
+        std::vector<Texel> texels(frame);
+        for (size_t i = 0; i < frame; ++i)
+            for (int k = 0; k < 3; ++k) {
+                texels[i].position[k] = pts.p[3 * i + size_t(k)];
+                texels[i].normal[k] = nrad::format::floatToHalf(pts.n[3 * i + size_t(k)]);
+                texels[i].direction[k] = nrad::format::floatToHalf(pts.d[3 * i + size_t(k)]);
+                pts.n[3 * i + size_t(k)] = nrad::format::halfToFloat(texels[i].normal[k]);
+                pts.d[3 * i + size_t(k)] = nrad::format::halfToFloat(texels[i].direction[k]);
+            }
+        std::vector<uint16_t> rgba(4 * frame);
+        std::vector<float> rgb(3 * 4096);
+        std::vector<uint8_t> scratch(nradGetScratchSize());
+        double gbufferBest = 0.0, batchBest = 0.0;
+        for (int r = 0; r < repeat; ++r) {
+            auto t0 = clock_type::now();
+            for (size_t first = 0; first < frame; first += 4096) {
+                const size_t n = std::min<size_t>(4096, frame - first);
+                NradGBuffer g;
+                std::memset(&g, 0, sizeof g);
+                g.structSize = sizeof g;
+                g.flags = NRAD_GBUFFER_UNIT_VECTORS;
+                g.count = n;
+                g.position = {texels[first].position, sizeof(Texel), NRAD_FORMAT_F32};
+                g.normal = {texels[first].normal, sizeof(Texel), NRAD_FORMAT_F16};
+                g.direction = {texels[first].direction, sizeof(Texel), NRAD_FORMAT_F16};
+                g.output = &rgba[4 * first];
+                g.outputFormat = NRAD_FORMAT_F16;
+                g.outputChannels = 4;
+                nradShadeGBuffer(asset, &g, scratch.data(), scratch.size());
+            }
+            auto t1 = clock_type::now();
+            for (size_t first = 0; first < frame; first += 4096) {
+                const size_t n = std::min<size_t>(4096, frame - first);
+                nradEvaluateBatch(asset, n, &pts.p[3 * first], &pts.n[3 * first], &pts.d[3 * first], rgb.data(), nullptr);
+            }
+            auto t2 = clock_type::now();
+            gbufferBest = std::max(gbufferBest, double(frame) / seconds(t0, t1));
+            batchBest = std::max(batchBest, double(frame) / seconds(t1, t2));
+        }
+        std::printf("\nG-buffer 1920x1080 (position fp32, normal and direction fp16, strided; RGBA fp16 out; 64x64 tiles), "
+                    "1 thread, kernel %d:\n  nradShadeGBuffer %.1f M points/s (%.2f ms per frame); nradEvaluateBatch on the "
+                    "same points in fp32 %.1f M points/s (%.2f ms): %.0f%%\n",
+                    int(nradActiveKernel()), gbufferBest * 1e-6, 1e3 * double(frame) / gbufferBest, batchBest * 1e-6,
+                    1e3 * double(frame) / batchBest, 100.0 * gbufferBest / batchBest);
+    }
+
     // One point per call (nradEvaluate), as a shader's per-pixel fallback or a gameplay query would: the rate
     // must not fall with the number of networks. Grids of 3^3, 7^3 and 16^3 occupied voxels, incoherent points.
     std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, kernel %d:\n", int(nradActiveKernel()));
