@@ -14,7 +14,8 @@ PACKAGES=(cmake ninja-build g++ pkg-config python3
   libembree-dev libtinygltf-dev libdraco-dev libopenexr-dev libglm-dev nlohmann-json3-dev
   libtbb-dev libcli11-dev libstb-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev chromium
-  libvulkan-dev glslang-tools mesa-vulkan-drivers)
+  libvulkan-dev glslang-tools mesa-vulkan-drivers
+  g++-aarch64-linux-gnu qemu-user file)
 
 install_packages() {
   local missing=()

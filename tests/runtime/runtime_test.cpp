@@ -1,6 +1,6 @@
 // libnrad: loading safety (every prefix, flipped bytes, bad magic, versions, trailing bytes, huge counts),
 // evaluation against an independent plain forward pass, every SIMD kernel against the scalar one, point
-// flags, both batch layouts, concurrent evaluation, and agreement with the baker's own forward pass.
+// flags, both batch layouts, concurrent evaluation (agreement with the baker's own forward pass: runtime_baker_test.cpp).
 #include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
@@ -14,9 +14,6 @@
 
 #include <gtest/gtest.h>
 
-#include "baker/bake/baker.h"
-#include "baker/nn/mlp.h"
-#include "baker/scene/gltf_loader.h"
 #include "runtime/src/kernels.h"  // rt::blendedBlocksSoFar(): which path the vector kernels took
 #include "support/test_paths.h"
 #include "support/random_asset.h"
@@ -621,75 +618,6 @@ TEST(RuntimeLoader, HostileAndDamagedBytes) {
     EXPECT_STREQ(message, "/nonexistent.nrad: cannot open file");
 }
 
-TEST(Runtime, AgreesWithTheBakersForwardPassOnABakedCornellBox) {
-    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
-    for (format::WeightEncoding enc : {format::WeightEncoding::Float32, format::WeightEncoding::Float16}) {
-        BakeSettings s;
-        s.samples.points = 2000;
-        s.samples.paths = 8;
-        s.train.epochs = 100;
-        s.encoding = enc;
-        BakeResult r = bakeScene(scene, s);
-        std::vector<uint8_t> bytes = format::encode(r.asset);
-        nrad::Asset asset;
-        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
-        VoxelGrid grid(scene.bounds, s.grid);
-        SurfacePieces pieces(scene.mesh, grid);
-        SplitMix64 rng(5);
-        double worst = 0.0;
-        for (NradKernel k : kernels()) {
-            nradSelectKernel(k);
-            for (size_t v = 0; v < r.voxels.size(); ++v) {
-                const std::vector<uint32_t>& own = pieces.piecesOf(r.voxels[v].voxel);
-                ASSERT_FALSE(own.empty());
-                for (int i = 0; i < 20; ++i) {
-                    float b1, b2;
-                    glm::vec3 p = pieces.samplePiece(pieces.pieces()[own[size_t(i) % own.size()]], {rng.uniform(), rng.uniform()}, b1, b2);
-                    glm::vec3 n = scene.mesh.geometricNormal(pieces.pieces()[own[size_t(i) % own.size()]].triangle);
-                    glm::vec3 d = glm::normalize(n + glm::vec3(0.3f, 0.2f, -0.1f));
-                    // The baker's own forward pass of every network that shades p, blended as nrad/eval.h says.
-                    const float q[3] = {p.x, p.y, p.z};
-                    const float factor[3] = {eval::gridFactor(r.asset.grid, 0), eval::gridFactor(r.asset.grid, 1),
-                                             eval::gridFactor(r.asset.grid, 2)};
-                    eval::Support sup[eval::kMaxSupports];
-                    auto resultOf = [&](int64_t voxel) {
-                        return std::find_if(r.voxels.begin(), r.voxels.end(), [&](const VoxelTrainResult& x) { return int64_t(x.voxel) == voxel; });
-                    };
-                    int count = eval::supports(r.asset.grid, factor, r.asset.grid.blendBand, q, sup);
-                    count = eval::keepOccupied(sup, count, [&](int64_t voxel) { return resultOf(voxel) != r.voxels.end(); });
-                    ASSERT_GT(count, 0);
-                    glm::vec3 expected(0.0f);
-                    float scale = 0.0f;
-                    for (int j = 0; j < count; ++j) {
-                        const VoxelTrainResult& vr = *resultOf(sup[j].voxel);
-                        Mlp mlp(s.train.shape);
-                        mlp.parameters() = vr.params;
-                        MlpWorkspace ws;
-                        float in[9], y[3];
-                        eval::encodeInputs(sup[j].local, &n.x, &d.x, in);
-                        mlp.forward(in, y, ws);
-                        expected += sup[j].weight * decodeOutput(r.asset.topology.outputTransform, vr.scale, y);
-                        scale = std::max(scale, vr.scale);
-                    }
-                    float rgb[3];
-                    uint32_t flag;
-                    ASSERT_EQ(asset.evaluate(&p.x, &n.x, &d.x, rgb, &flag), NRAD_OK);
-                    ASSERT_EQ(flag, uint32_t(NRAD_POINT_OK));
-                    for (int c = 0; c < 3; ++c) {
-                        // Relative to the larger of the value and the voxels' mean radiance (their scale).
-                        double rel = std::abs(rgb[c] - expected[c]) / std::max(double(std::abs(expected[c])), double(scale));
-                        worst = std::max(worst, rel);
-                    }
-                }
-            }
-        }
-        // Stated tolerance, relative to max(value, voxel mean radiance): fp32 weights 1e-4 (measured 4e-7),
-        // fp16 weights 5e-3 (measured 1.2e-3: 11-bit mantissas).
-        std::printf("encoding %d: worst relative difference %.3g\n", int(enc), worst);
-        EXPECT_LT(worst, enc == format::WeightEncoding::Float32 ? 1e-4 : 5e-3) << "encoding " << int(enc);
-    }
-    nradSelectKernel(NRAD_KERNEL_AUTO);
-}
 
 }  // namespace
 }  // namespace nrad
