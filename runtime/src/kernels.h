@@ -46,6 +46,9 @@ void evalChunkScalar(const NetworkView& net, const float* x, float* y, int count
 void evalChunkAvx2(const NetworkView& net, const float* x, float* y, int count);
 void evalChunkAvx512(const NetworkView& net, const float* x, float* y, int count);
 #endif
+#if defined(__aarch64__)
+void evalChunkNeon(const NetworkView& net, const float* x, float* y, int count);
+#endif
 
 // fp16 <-> fp32 for G-buffers, n values: exactly format::halfToFloat / floatToHalf for the values these see
 // (FloatToHalf's inputs are radiance: finite, >= 0; it saturates at 65504 as format::floatToHalf does).
@@ -113,6 +116,10 @@ using BlockDriver = void (*)(const BlockContext& ctx, size_t blocks, Deferred& d
 constexpr int kAvx2Width = 8, kAvx512Width = 16;
 void evalBlocksAvx2(const BlockContext& ctx, size_t blocks, Deferred& def);
 void evalBlocksAvx512(const BlockContext& ctx, size_t blocks, Deferred& def);
+#endif
+#if defined(__aarch64__)
+constexpr int kNeonWidth = 4;
+void evalBlocksNeon(const BlockContext& ctx, size_t blocks, Deferred& def);
 #endif
 
 }  // namespace nrad::rt

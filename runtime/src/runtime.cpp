@@ -48,12 +48,16 @@ bool cpuHas(NradKernel k) {
     if (k == NRAD_KERNEL_AVX2) return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
     if (k == NRAD_KERNEL_AVX512) return __builtin_cpu_supports("avx512f");
 #endif
+#if defined(__aarch64__)
+    if (k == NRAD_KERNEL_NEON) return true;
+#endif
     return k == NRAD_KERNEL_SCALAR;
 }
 
 NradKernel bestKernel() {
     if (cpuHas(NRAD_KERNEL_AVX512)) return NRAD_KERNEL_AVX512;
     if (cpuHas(NRAD_KERNEL_AVX2)) return NRAD_KERNEL_AVX2;
+    if (cpuHas(NRAD_KERNEL_NEON)) return NRAD_KERNEL_NEON;
     return NRAD_KERNEL_SCALAR;
 }
 
@@ -73,6 +77,9 @@ rt::ChunkKernel kernelFunction(NradKernel k) {
 #if defined(__x86_64__) || defined(_M_X64)
     if (k == NRAD_KERNEL_AVX512) return rt::evalChunkAvx512;
     if (k == NRAD_KERNEL_AVX2) return rt::evalChunkAvx2;
+#endif
+#if defined(__aarch64__)
+    if (k == NRAD_KERNEL_NEON) return rt::evalChunkNeon;
 #endif
     (void)k;
     return rt::evalChunkScalar;
@@ -182,6 +189,12 @@ rt::BlockDriver blockDriver(NradKernel k, int& width) {
     if (k == NRAD_KERNEL_AVX2) {
         width = rt::kAvx2Width;
         return rt::evalBlocksAvx2;
+    }
+#endif
+#if defined(__aarch64__)
+    if (k == NRAD_KERNEL_NEON) {
+        width = rt::kNeonWidth;
+        return rt::evalBlocksNeon;
     }
 #endif
     (void)k;
@@ -848,7 +861,7 @@ NradStatus nradSelectKernel(NradKernel kernel) {
         gKernel.store(bestKernel());
         return NRAD_OK;
     }
-    if (kernel != NRAD_KERNEL_SCALAR && kernel != NRAD_KERNEL_AVX2 && kernel != NRAD_KERNEL_AVX512)
+    if (kernel != NRAD_KERNEL_SCALAR && kernel != NRAD_KERNEL_AVX2 && kernel != NRAD_KERNEL_AVX512 && kernel != NRAD_KERNEL_NEON)
         return NRAD_ERROR_INVALID_ARGUMENT;
     if (!cpuHas(kernel)) return NRAD_ERROR_UNSUPPORTED_KERNEL;
     gKernel.store(kernel);

@@ -22,7 +22,7 @@ namespace {
 
 std::vector<NradKernel> kernels() {
     std::vector<NradKernel> k = {NRAD_KERNEL_SCALAR};
-    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512})
+    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512, NRAD_KERNEL_NEON})
         if (nradKernelSupported(c)) k.push_back(c);
     return k;
 }

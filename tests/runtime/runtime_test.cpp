@@ -80,7 +80,7 @@ glm::vec3 referenceOne(const format::Asset& a, size_t net, const float local[3],
 
 std::vector<NradKernel> kernels() {
     std::vector<NradKernel> k = {NRAD_KERNEL_SCALAR};
-    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512})
+    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512, NRAD_KERNEL_NEON})
         if (nradKernelSupported(c)) k.push_back(c);
     return k;
 }
@@ -485,6 +485,24 @@ TEST(Runtime, EveryAcceptedAssetGivesFiniteOutputForFiniteInputs) {
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+// AUTO picks the widest kernel this CPU runs: NEON on 64-bit ARM (run under qemu by
+// tests/runtime_standalone/run.sh aarch64), AVX-512 or AVX2 on x86-64, and a kernel the CPU lacks is refused.
+TEST(Runtime, TheBestKernelOfThisCpuIsChosen) {
+    ASSERT_EQ(nradSelectKernel(NRAD_KERNEL_AUTO), NRAD_OK);
+#if defined(__aarch64__)
+    EXPECT_EQ(nradActiveKernel(), NRAD_KERNEL_NEON);
+    EXPECT_EQ(nradKernelSupported(NRAD_KERNEL_AVX2), 0);
+    EXPECT_EQ(nradSelectKernel(NRAD_KERNEL_AVX2), NRAD_ERROR_UNSUPPORTED_KERNEL);
+#else
+    EXPECT_EQ(nradKernelSupported(NRAD_KERNEL_NEON), 0);
+    EXPECT_EQ(nradSelectKernel(NRAD_KERNEL_NEON), NRAD_ERROR_UNSUPPORTED_KERNEL);
+    EXPECT_EQ(nradActiveKernel(), nradKernelSupported(NRAD_KERNEL_AVX512) ? NRAD_KERNEL_AVX512
+                                  : nradKernelSupported(NRAD_KERNEL_AVX2) ? NRAD_KERNEL_AVX2
+                                                                          : NRAD_KERNEL_SCALAR);
+#endif
+    EXPECT_EQ(nradSelectKernel(NradKernel(99)), NRAD_ERROR_INVALID_ARGUMENT);
 }
 
 TEST(Runtime, FlagsForOutsideEmptyAndInvalidPoints) {

@@ -262,7 +262,8 @@ typedef enum NradKernel {
     NRAD_KERNEL_AUTO = 0,    /* the fastest this CPU supports (the default) */
     NRAD_KERNEL_SCALAR = 1,  /* plain C++, any CPU: the reference */
     NRAD_KERNEL_AVX2 = 2,    /* x86-64 with AVX2 and FMA */
-    NRAD_KERNEL_AVX512 = 3   /* x86-64 with AVX-512F */
+    NRAD_KERNEL_AVX512 = 3,  /* x86-64 with AVX-512F */
+    NRAD_KERNEL_NEON = 4     /* 64-bit ARM (Advanced SIMD) */
 } NradKernel;
 
 /* Chooses the evaluation kernel for this process (for testing and measurement). Fails with
