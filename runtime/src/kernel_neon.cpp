@@ -74,9 +74,26 @@ struct Neon {
 
 #include "simd_impl.h"
 
+float halfToFloatOne(uint16_t h) { return vgetq_lane_f32(vcvt_f32_f16(vreinterpret_f16_u16(vdup_n_u16(h))), 0); }
+uint16_t floatToHalfOne(float f) { return vget_lane_u16(vreinterpret_u16_f16(vcvt_f16_f32(vdupq_n_f32(f))), 0); }
+
 }  // namespace
 
 void evalChunkNeon(const NetworkView& net, const float* x, float* y, int count) { evalChunk<Neon>(net, x, y, count); }
+
+void halfToFloatNeon(const uint16_t* in, float* out, size_t n) {
+    size_t i = 0;
+    for (; i + 4 <= n; i += 4) vst1q_f32(out + i, vcvt_f32_f16(vreinterpret_f16_u16(vld1_u16(in + i))));
+    for (; i < n; ++i) out[i] = halfToFloatOne(in[i]);
+}
+
+void floatToHalfNeon(const float* in, uint16_t* out, size_t n) {
+    // Saturate at 65504 first (format::floatToHalf's rule); the conversion rounds to nearest even.
+    const float32x4_t top = vdupq_n_f32(65504.0f);
+    size_t i = 0;
+    for (; i + 4 <= n; i += 4) vst1_u16(out + i, vreinterpret_u16_f16(vcvt_f16_f32(vminq_f32(vld1q_f32(in + i), top))));
+    for (; i < n; ++i) out[i] = floatToHalfOne(in[i] < 65504.0f ? in[i] : 65504.0f);
+}
 
 void evalBlocksNeon(const BlockContext& ctx, size_t blocks, Deferred& def) {
     if (ctx.io.stride == 1)

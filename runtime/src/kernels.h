@@ -60,6 +60,10 @@ void floatToHalfScalar(const float* in, uint16_t* out, size_t n);
 void halfToFloatF16c(const uint16_t* in, float* out, size_t n);  // AVX2 + F16C
 void floatToHalfF16c(const float* in, uint16_t* out, size_t n);
 #endif
+#if defined(__aarch64__)
+void halfToFloatNeon(const uint16_t* in, float* out, size_t n);
+void floatToHalfNeon(const float* in, uint16_t* out, size_t n);
+#endif
 
 // ----- whole batches, a vector of points at a time (the SIMD kernels only) -----------------------------
 

@@ -555,7 +555,8 @@ void normalise(float v[3]) {
     }
 }
 
-// fp16 conversions: F16C where the CPU has it (and a vector kernel is in use), else the format's scalar ones.
+// fp16 conversions: F16C where the CPU has it (and a vector kernel is in use), NEON's with the NEON kernel, else
+// the format's scalar ones.
 struct HalfConverters {
     rt::HalfToFloat toFloat;
     rt::FloatToHalf toHalf;
@@ -564,6 +565,9 @@ HalfConverters halfConverters() {
 #if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
     static const bool f16c = cpuHas(NRAD_KERNEL_AVX2) && __builtin_cpu_supports("f16c");
     if (f16c && activeKernel() != NRAD_KERNEL_SCALAR) return {rt::halfToFloatF16c, rt::floatToHalfF16c};
+#endif
+#if defined(__aarch64__)
+    if (activeKernel() == NRAD_KERNEL_NEON) return {rt::halfToFloatNeon, rt::floatToHalfNeon};
 #endif
     return {rt::halfToFloatScalar, rt::floatToHalfScalar};
 }
