@@ -12,6 +12,10 @@
 #include <string>
 #include <vector>
 
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+#include <cpuid.h>
+#endif
+
 #include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
@@ -563,7 +567,11 @@ struct HalfConverters {
 };
 HalfConverters halfConverters() {
 #if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
-    static const bool f16c = cpuHas(NRAD_KERNEL_AVX2) && __builtin_cpu_supports("f16c");
+    // CPUID leaf 1, ECX bit 29: F16C (clang's __builtin_cpu_supports does not know the name).
+    static const bool f16c = cpuHas(NRAD_KERNEL_AVX2) && [] {
+        unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+        return __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & (1u << 29)) != 0;
+    }();
     if (f16c && activeKernel() != NRAD_KERNEL_SCALAR) return {rt::halfToFloatF16c, rt::floatToHalfF16c};
 #endif
 #if defined(__aarch64__)
