@@ -40,6 +40,7 @@ struct NradAsset_ {
     std::vector<int32_t> denseLookup;  // cell -> network, -1 = empty; used when the grid is small enough
     eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves), its band
     std::vector<float> scales;  // per network: the voxel's output scale
+    std::atomic<int> kernel{NRAD_KERNEL_AUTO};  // nradSetAssetKernel; AUTO: the process-wide choice
 };
 
 namespace {
@@ -87,6 +88,12 @@ rt::ChunkKernel kernelFunction(NradKernel k) {
 #endif
     (void)k;
     return rt::evalChunkScalar;
+}
+
+// The asset's own kernel (nradSetAssetKernel), else the process-wide one.
+NradKernel kernelOf(const NradAsset_& a) {
+    const int k = a.kernel.load(std::memory_order_relaxed);
+    return k == NRAD_KERNEL_AUTO ? activeKernel() : NradKernel(k);
 }
 
 // ----- loading -------------------------------------------------------------------------------------------
@@ -326,7 +333,7 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
 void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scratch& s) {
     const size_t nets = a.asset.voxels.size();
     rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0};
-    const NradKernel kind = activeKernel();
+    const NradKernel kind = kernelOf(a);
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
     const bool exponential = t.outputTransform == format::OutputTransform::Exponential;
@@ -565,17 +572,17 @@ struct HalfConverters {
     rt::HalfToFloat toFloat;
     rt::FloatToHalf toHalf;
 };
-HalfConverters halfConverters() {
+HalfConverters halfConverters(NradKernel kernel) {
 #if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
     // CPUID leaf 1, ECX bit 29: F16C (clang's __builtin_cpu_supports does not know the name).
     static const bool f16c = cpuHas(NRAD_KERNEL_AVX2) && [] {
         unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
         return __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & (1u << 29)) != 0;
     }();
-    if (f16c && activeKernel() != NRAD_KERNEL_SCALAR) return {rt::halfToFloatF16c, rt::floatToHalfF16c};
+    if (f16c && kernel != NRAD_KERNEL_SCALAR) return {rt::halfToFloatF16c, rt::floatToHalfF16c};
 #endif
 #if defined(__aarch64__)
-    if (activeKernel() == NRAD_KERNEL_NEON) return {rt::halfToFloatNeon, rt::floatToHalfNeon};
+    if (kernel == NRAD_KERNEL_NEON) return {rt::halfToFloatNeon, rt::floatToHalfNeon};
 #endif
     return {rt::halfToFloatScalar, rt::floatToHalfScalar};
 }
@@ -606,7 +613,7 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     Scratch s = carveScratch(scratch);
     auto tileAt = (reinterpret_cast<uintptr_t>(scratch) + kScratchBytes + 63) & ~uintptr_t(63);
     GBufferTile& t = *reinterpret_cast<GBufferTile*>(tileAt);
-    const HalfConverters conv = halfConverters();
+    const HalfConverters conv = halfConverters(kernelOf(a));
     const bool eye = (g.flags & NRAD_GBUFFER_EYE) != 0, unit = (g.flags & NRAD_GBUFFER_UNIT_VECTORS) != 0;
     const bool half = g.outputFormat == NRAD_FORMAT_F16;
     const size_t channels = g.outputChannels, pixel = channels * (half ? 2 : 4);
@@ -881,6 +888,15 @@ NradStatus nradSelectKernel(NradKernel kernel) {
 }
 
 NradKernel nradActiveKernel(void) { return activeKernel(); }
+
+NradStatus nradSetAssetKernel(NradAsset a, NradKernel kernel) {
+    if (!a || (kernel != NRAD_KERNEL_AUTO && kernel != NRAD_KERNEL_SCALAR && kernel != NRAD_KERNEL_AVX2 &&
+               kernel != NRAD_KERNEL_AVX512 && kernel != NRAD_KERNEL_NEON))
+        return NRAD_ERROR_INVALID_ARGUMENT;
+    if (kernel != NRAD_KERNEL_AUTO && !cpuHas(kernel)) return NRAD_ERROR_UNSUPPORTED_KERNEL;
+    a->kernel.store(kernel, std::memory_order_relaxed);
+    return NRAD_OK;
+}
 
 int nradKernelSupported(NradKernel kernel) { return kernel == NRAD_KERNEL_AUTO || cpuHas(kernel) ? 1 : 0; }
 

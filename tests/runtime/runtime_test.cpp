@@ -505,6 +505,40 @@ TEST(Runtime, TheBestKernelOfThisCpuIsChosen) {
     EXPECT_EQ(nradSelectKernel(NradKernel(99)), NRAD_ERROR_INVALID_ARGUMENT);
 }
 
+// One asset's kernel, whatever the process-wide choice: an asset pinned to the scalar kernel gives the scalar
+// kernel's bits while the process runs its fastest, and follows the process again with AUTO.
+TEST(Runtime, KernelChoicePerAsset) {
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 12,
+                                  glm::uvec3(3, 3, 3), 0.125f);
+    const std::vector<uint8_t> bytes = format::encode(a);
+    nrad::Asset pinned, free;
+    ASSERT_EQ(pinned.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    ASSERT_EQ(free.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    const Points pts = randomPoints(4000, 8);
+    const size_t n = pts.p.size() / 3;
+    auto run = [&](const nrad::Asset& asset) {
+        std::vector<float> rgb(3 * n);
+        EXPECT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data()), NRAD_OK);
+        return rgb;
+    };
+    ASSERT_EQ(nradSelectKernel(NRAD_KERNEL_SCALAR), NRAD_OK);
+    const std::vector<float> scalar = run(free);
+    ASSERT_EQ(nradSelectKernel(NRAD_KERNEL_AUTO), NRAD_OK);
+    const std::vector<float> fastest = run(free);
+    ASSERT_EQ(nradSetAssetKernel(pinned.get(), NRAD_KERNEL_SCALAR), NRAD_OK);
+    EXPECT_EQ(run(pinned), scalar);
+    EXPECT_EQ(run(free), fastest);
+    ASSERT_EQ(nradSetAssetKernel(pinned.get(), NRAD_KERNEL_AUTO), NRAD_OK);
+    EXPECT_EQ(run(pinned), fastest);
+    if (nradActiveKernel() != NRAD_KERNEL_SCALAR) {
+        EXPECT_NE(scalar, fastest) << "the kernels must differ for this test to mean anything";
+    }
+    EXPECT_EQ(nradSetAssetKernel(pinned.get(), NradKernel(42)), NRAD_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(nradSetAssetKernel(nullptr, NRAD_KERNEL_SCALAR), NRAD_ERROR_INVALID_ARGUMENT);
+    for (NradKernel k : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512, NRAD_KERNEL_NEON})
+        EXPECT_EQ(nradSetAssetKernel(pinned.get(), k), nradKernelSupported(k) ? NRAD_OK : NRAD_ERROR_UNSUPPORTED_KERNEL);
+}
+
 TEST(Runtime, FlagsForOutsideEmptyAndInvalidPoints) {
     format::Asset a = randomAsset({9}, format::WeightEncoding::Float32, format::OutputTransform::ClampedLinear, 3);
     std::vector<uint8_t> bytes = format::encode(a);

@@ -271,6 +271,9 @@ typedef enum NradKernel {
 NRAD_API NradStatus nradSelectKernel(NradKernel kernel);
 /* The kernel evaluation uses now (never NRAD_KERNEL_AUTO). */
 NRAD_API NradKernel nradActiveKernel(void);
+/* The kernel for one asset's evaluations, whatever the process-wide choice (NRAD_KERNEL_AUTO: follow it).
+ * Safe while other threads evaluate the asset. */
+NRAD_API NradStatus nradSetAssetKernel(NradAsset asset, NradKernel kernel);
 /* Nonzero if this CPU and build can run `kernel`. */
 NRAD_API int nradKernelSupported(NradKernel kernel);
 
