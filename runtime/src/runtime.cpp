@@ -299,6 +299,12 @@ struct ThreadScratch {
     }
 };
 
+// The calling thread's scratch block (one per thread, shared by every entry point).
+void* threadScratch() {
+    thread_local ThreadScratch own;
+    return own.get();
+}
+
 // ----- evaluation of one tile -------------------------------------------------------------------------------------
 
 // Locates point i one at a time (the reference path): its supports join the deferred entries; a point
@@ -430,8 +436,7 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
 
 // A batch, tile by tile, in `scratch` (kScratchBytes), or the calling thread's scratch when null.
 NradStatus evaluateBatch(const NradAsset_& a, size_t count, const rt::BatchIo& v, void* scratch = nullptr) {
-    thread_local ThreadScratch own;
-    Scratch s = carveScratch(scratch ? scratch : own.get());
+    Scratch s = carveScratch(scratch ? scratch : threadScratch());
     for (size_t first = 0; first < count; first += kTilePoints) {
         rt::BatchIo part = v;
         for (int c = 0; c < 3; ++c) {
@@ -842,8 +847,7 @@ NradStatus nradShadeGBuffer(NradAsset a, const NradGBuffer* g, void* scratch, si
         (g->outputChannels != 3 && g->outputChannels != 4) || (scratch && scratchBytes < kScratchBytes + kGBufferScratchBytes))
         return NRAD_ERROR_INVALID_ARGUMENT;
     return guarded([&] {
-        thread_local ThreadScratch own;
-        shadeGBuffer(*a, *g, scratch ? scratch : own.get());
+        shadeGBuffer(*a, *g, scratch ? scratch : threadScratch());
         return NRAD_OK;
     });
 }
