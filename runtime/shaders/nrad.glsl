@@ -214,6 +214,7 @@ float nradWeight(uint index) {
 }
 
 float nradExpMinusOne(float v) {
+    if ((floatBitsToUint(v) & 0x7FFFFFFFu) > 0x7F800000u) return v;  // NaN stays NaN (the caller maps it to 0)
     float xe = v < -87.0 ? -87.0 : (v > 80.0 ? 80.0 : v);
     float n = float(int(xe * 1.44269504 + (xe >= 0.0 ? 0.5 : -0.5)));
     float r = (xe - n * 0.693359375) - n * -2.12194440e-4;

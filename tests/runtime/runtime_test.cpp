@@ -423,6 +423,13 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
 // relatives (the largest fp16 weights, the largest float scale, exponential outputs), through every kernel,
 // every entry point and shading. Outputs are clamped to [0, eval::kMaxRadiance].
 TEST(Runtime, EveryAcceptedAssetGivesFiniteOutputForFiniteInputs) {
+    // A network that overflows to NaN (inf - inf inside it): exp - 1 keeps the NaN without converting it to an
+    // integer (undefined behaviour, which the fuzzer found), and the decoded radiance is 0.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_TRUE(std::isnan(eval::expMinusOne(nan)));
+    EXPECT_EQ(eval::decodeOutput(format::OutputTransform::Exponential, 2.0f, nan), 0.0f);
+    EXPECT_EQ(eval::decodeOutput(format::OutputTransform::ClampedLinear, 2.0f, nan), 0.0f);
+    EXPECT_EQ(eval::decodeOutput(format::OutputTransform::Exponential, 3e38f, 1e30f), eval::kMaxRadiance);
     struct Case {
         format::OutputTransform transform;
         float scale, weight;

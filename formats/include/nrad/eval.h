@@ -472,7 +472,8 @@ inline void forward(const format::Topology& t, const float* params, const float 
 // with fused multiply-adds, their own order of sums and round-to-nearest-even for n, which changes the last
 // bits (tests/runtime holds them to 1e-5 of max(1, value) against this file).
 inline float expMinusOne(float v) {
-    float xe = v < kMinLog ? kMinLog : (v > kMaxLog ? kMaxLog : v);  // NaN stays NaN (mapped to 0 below)
+    if (v != v) return v;  // NaN (a network overflowed on huge inputs): stays NaN, decodeOutput maps it to 0
+    float xe = v < kMinLog ? kMinLog : (v > kMaxLog ? kMaxLog : v);
     float n = float(int(xe * kLog2e + (xe >= 0.0f ? 0.5f : -0.5f)));
     float r = (xe - n * kLn2Hi) - n * kLn2Lo;
     float q = kExpP[6];
