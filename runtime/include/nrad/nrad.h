@@ -188,7 +188,8 @@ NRAD_API NradStatus nradShadeBatch(NradAsset asset, size_t count, const float* p
 typedef void* (*NradAllocateFunction)(size_t bytes, void* user);
 typedef void (*NradFreeFunction)(void* memory, void* user);
 /* Sets the allocator for per-thread scratch (null functions restore malloc/free). Not concurrent with
- * evaluation; memory is released through the function it was allocated with. */
+ * evaluation. A thread's block is released, when the thread ends, through the function and `user` it was
+ * allocated with: they must stay valid until every thread that evaluated with them has ended. */
 NRAD_API void nradSetAllocator(NradAllocateFunction allocate, NradFreeFunction release, void* user);
 /* Bytes of scratch any evaluation call needs, whatever the batch size or asset (evaluation works in tiles of
  * 1,024 points); nradShadeGBuffer takes it from the caller. */
