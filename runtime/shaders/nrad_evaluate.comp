@@ -3,7 +3,8 @@
 // buffers in set 0: 0 the packed asset; 1 positions, 2 normals, 3 directions (3 floats per point, interleaved
 // xyz); 4 surfaces (9 floats per point, nrad.h's NradSurface: base colour, metallic, roughness, specular,
 // emission; read only when shading); 5 radiance out (3 floats per point); 6 flags out (a uint per point).
-// Push constants: the count and whether to shade.
+// Push constants: the count and whether to shade. Dispatch ceil(count / 64) workgroups along x (Vulkan
+// guarantees 65,535: up to 4,194,240 points per dispatch; split larger batches).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
