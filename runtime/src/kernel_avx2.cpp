@@ -49,6 +49,56 @@ struct Avx2 {
     }
     static void deinterleave3(F a, F b, F c, F out[3]);
     static void interleave3(const F in[3], F out[3]);
+    static F sqrt(F a) { return _mm256_sqrt_ps(a); }
+    static F loadHalf(const uint16_t* p) { return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))); }
+    static __m128i toHalf(F v) {  // floatToHalfF16c's rule
+        return _mm256_cvtps_ph(_mm256_min_ps(v, _mm256_set1_ps(65504.0f)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+    }
+    static void storeHalf(uint16_t* p, F v) { _mm_storeu_si128(reinterpret_cast<__m128i*>(p), toHalf(v)); }
+
+    // Eight points' x y z (and the next 4 bytes) as rows, transposed: 16-byte loads, two points per 256-bit row.
+    static constexpr bool kStridedLoads = true;
+    static void loadStrided3(const uint8_t* s, size_t stride, F v[3]) {
+        auto row = [&](int l) {
+            return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(reinterpret_cast<const float*>(s + size_t(l) * stride))),
+                                        _mm_loadu_ps(reinterpret_cast<const float*>(s + size_t(l + 4) * stride)), 1);
+        };
+        const F r0 = row(0), r1 = row(1), r2 = row(2), r3 = row(3);  // [point l | point l + 4]
+        const F t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);  // x0 x1 y0 y1 | x4 x5 y4 y5, z...
+        const F t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
+        v[0] = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+        v[1] = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+        v[2] = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+    }
+    // Eight points' x y z (and the next 2 bytes) in fp16: 8-byte loads, a 16-bit transpose, F16C.
+    static void loadStrided3Half(const uint8_t* s, size_t stride, F v[3]) {
+        __m128i q[8];
+        for (int l = 0; l < 8; ++l) q[l] = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(s + size_t(l) * stride));
+        const __m128i a0 = _mm_unpacklo_epi16(q[0], q[1]), a1 = _mm_unpacklo_epi16(q[2], q[3]);  // x0 x1 y0 y1 z0 z1 . .
+        const __m128i a2 = _mm_unpacklo_epi16(q[4], q[5]), a3 = _mm_unpacklo_epi16(q[6], q[7]);
+        const __m128i b0 = _mm_unpacklo_epi32(a0, a1), b1 = _mm_unpackhi_epi32(a0, a1);  // x0..x3 y0..y3, z0..z3 . .
+        const __m128i b2 = _mm_unpacklo_epi32(a2, a3), b3 = _mm_unpackhi_epi32(a2, a3);
+        v[0] = _mm256_cvtph_ps(_mm_unpacklo_epi64(b0, b2));
+        v[1] = _mm256_cvtph_ps(_mm_unpackhi_epi64(b0, b2));
+        v[2] = _mm256_cvtph_ps(_mm_unpacklo_epi64(b1, b3));
+    }
+    // Eight RGBA fp16 pixels: the inverse transpose, then whole 8-byte pixels.
+    static constexpr bool kHalfRgbaStore = true;
+    static void storeHalfRgba(uint8_t* o, size_t stride, const F rgb[3]) {
+        const __m128i r = toHalf(rgb[0]), g = toHalf(rgb[1]), b = toHalf(rgb[2]), a = _mm_set1_epi16(0x3C00);
+        const __m128i rgLo = _mm_unpacklo_epi16(r, g), rgHi = _mm_unpackhi_epi16(r, g);
+        const __m128i baLo = _mm_unpacklo_epi16(b, a), baHi = _mm_unpackhi_epi16(b, a);
+        const __m128i px[4] = {_mm_unpacklo_epi32(rgLo, baLo), _mm_unpackhi_epi32(rgLo, baLo),
+                               _mm_unpacklo_epi32(rgHi, baHi), _mm_unpackhi_epi32(rgHi, baHi)};  // pixels 2k, 2k + 1
+        if (stride == 8) {
+            for (int k = 0; k < 4; ++k) _mm_storeu_si128(reinterpret_cast<__m128i*>(o + 16 * k), px[k]);
+            return;
+        }
+        for (int k = 0; k < 4; ++k) {
+            _mm_storel_epi64(reinterpret_cast<__m128i*>(o + size_t(2 * k) * stride), px[k]);
+            _mm_storeh_pd(reinterpret_cast<double*>(o + size_t(2 * k + 1) * stride), _mm_castsi128_pd(px[k]));
+        }
+    }
 };
 
 }  // namespace

@@ -47,6 +47,14 @@ struct Avx512 {
     static F timesPow2(F q, F n) { return _mm512_scalef_ps(q, n); }
     static void deinterleave3(F a, F b, F c, F out[3]);
     static void interleave3(const F in[3], F out[3]);
+    static F sqrt(F a) { return _mm512_sqrt_ps(a); }
+    static F loadHalf(const uint16_t* p) { return _mm512_cvtph_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p))); }
+    static void storeHalf(uint16_t* p, F v) {  // floatToHalfF16c's rule
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(p),
+                            _mm512_cvtps_ph(_mm512_min_ps(v, _mm512_set1_ps(65504.0f)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+    }
+    static constexpr bool kStridedLoads = false;  // G-buffers through simd_impl.h's exact per-point reads
+    static constexpr bool kHalfRgbaStore = false;
 };
 
 }  // namespace

@@ -70,6 +70,13 @@ struct Neon {
         out[1] = vld1q_f32(xyz + 4);
         out[2] = vld1q_f32(xyz + 8);
     }
+    static F sqrt(F a) { return vsqrtq_f32(a); }
+    static F loadHalf(const uint16_t* p) { return vcvt_f32_f16(vreinterpret_f16_u16(vld1_u16(p))); }
+    static void storeHalf(uint16_t* p, F v) {  // floatToHalfNeon's rule (v is never NaN)
+        vst1_u16(p, vreinterpret_u16_f16(vcvt_f16_f32(vminq_f32(v, vdupq_n_f32(65504.0f)))));
+    }
+    static constexpr bool kStridedLoads = false;  // G-buffers through simd_impl.h's exact per-point reads
+    static constexpr bool kHalfRgbaStore = false;
 };
 
 #include "simd_impl.h"

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 #include <nrad/eval_constants.h>
 
@@ -76,8 +77,39 @@ struct LocateGrid {
     const int32_t* dense;
 };
 
+// One G-buffer attribute of a tile as the block driver reads it: three fp32 or fp16 components per point,
+// point i's at base + i stride.
+struct StridedAttribute {
+    const uint8_t* base;
+    size_t stride;
+    bool half;
+};
+
+// A tile of a G-buffer (nradShadeGBuffer) read and written by the block driver itself, so that a coherent
+// vector of points goes from the caller's texels to the caller's pixels without leaving registers.
+struct GBufferIo {
+    StridedAttribute p, n, d;
+    bool eye;  // directions eye - p (d unused); normalised
+    float eyePosition[3];
+    bool normaliseNormals;  // normals normalised on input
+    bool normaliseDirections;  // directions normalised on input (always with eye)
+    // Points [0, safePoints) may be read with a few bytes past their last component (one 16-byte load per
+    // fp32 point, one 8-byte load per fp16 point): every point but the G-buffer's last.
+    size_t safePoints;
+    // Output pixels: `channels` (3 or 4; the fourth is 1) fp32 or fp16 values, `outStride` bytes apart. Null:
+    // the driver writes fp32 results to BatchIo::out and fills BatchIo::p/n/d for every point (the caller
+    // shades them); otherwise it writes the pixels of the blocks it completes, marking their points in `done`,
+    // and fills BatchIo::p/n/d only for the blocks it leaves to the general path.
+    uint8_t* out;
+    size_t outStride;
+    bool outHalf;
+    int channels;
+    uint8_t* done;  // per point, zeroed by the caller
+};
+
 // Where a batch's points come from and where their results go: interleaved (stride 3, the x pointers
-// address the whole array) or SoA (stride 1, separate arrays).
+// address the whole array) or SoA (stride 1, separate arrays). With `gbuffer`, the points come from there
+// and p, n, d (interleaved, fp32) are where the driver leaves them, already normalised, for the other paths.
 struct BatchIo {
     const float* p[3];
     const float* n[3];
@@ -85,6 +117,7 @@ struct BatchIo {
     float* out[3];
     size_t stride;
     uint8_t* flags;  // may be null
+    const GBufferIo* gbuffer;  // may be null
 };
 
 struct BlockContext {
@@ -104,11 +137,14 @@ struct Deferred {
     float* local;  // 3 per point
     size_t count;
     size_t blendedBlocks;  // blocks blended in registers (evalBlended)
+    size_t gbufferBlocks;  // G-buffer blocks whose pixels the driver wrote
 };
 
 // Blocks blended in registers since the process started, over all threads: lets tests see that the
 // vector blending path is taken (its results are bit-identical to the general path's by design).
 uint64_t blendedBlocksSoFar();
+// G-buffer blocks read, evaluated and written in registers since the process started (the same purpose).
+uint64_t gbufferBlocksSoFar();
 
 // Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
 // blending band and in one occupied voxel is located and evaluated in vector registers, with its results and

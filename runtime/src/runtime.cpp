@@ -68,6 +68,7 @@ NradKernel bestKernel() {
 
 std::atomic<int> gKernel{NRAD_KERNEL_AUTO};
 std::atomic<uint64_t> gBlendedBlocks{0};
+std::atomic<uint64_t> gGBufferBlocks{0};
 
 NradKernel activeKernel() {
     int k = gKernel.load(std::memory_order_relaxed);
@@ -213,6 +214,12 @@ rt::BlockDriver blockDriver(NradKernel k, int& width) {
     return nullptr;
 }
 
+// The asset's block driver and its width: grid assets on a vector kernel; else null and 0.
+rt::BlockDriver blockDriverOf(const NradAsset_& a, int& width) {
+    width = 0;
+    return a.denseLookup.empty() || !a.partition.tree.empty() ? nullptr : blockDriver(kernelOf(a), width);
+}
+
 // ----- scratch: everything evaluation needs besides the caller's arrays --------------------------------------
 
 // Evaluation works on tiles of at most kTilePoints points; a tile's deferred entries (point, network, weight,
@@ -247,6 +254,7 @@ struct GBufferTile {
     float color[4 * kTilePoints];  // the output's channels in fp32
     uint16_t halves[4 * kTilePoints];  // fp16 staging, in and out
     uint8_t flags[kTilePoints];
+    uint8_t done[kTilePoints];  // pixels the block driver wrote itself (rt::GBufferIo)
 };
 constexpr size_t kGBufferScratchBytes = sizeof(GBufferTile) + 64;
 
@@ -338,7 +346,7 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
 // At most kTilePoints points.
 void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scratch& s) {
     const size_t nets = a.asset.voxels.size();
-    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0};
+    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0, 0};
     const NradKernel kind = kernelOf(a);
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
@@ -349,7 +357,7 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
     // 1. Whole vectors of points through the SIMD block driver: a vector of points in one voxel (the
     //    common case for coherent batches) is located and evaluated in registers there.
     int width = 0;
-    rt::BlockDriver driver = a.denseLookup.empty() || !a.partition.tree.empty() ? nullptr : blockDriver(kind, width);
+    rt::BlockDriver driver = blockDriverOf(a, width);
     size_t blocks = driver ? count / size_t(width) : 0;
     if (blocks > 0) {
         rt::BlockContext ctx{};
@@ -368,6 +376,7 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
         ctx.io = v;
         driver(ctx, blocks, def);
         if (def.blendedBlocks) gBlendedBlocks.fetch_add(def.blendedBlocks, std::memory_order_relaxed);
+        if (def.gbufferBlocks) gGBufferBlocks.fetch_add(def.gbufferBlocks, std::memory_order_relaxed);
     }
     // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
     //    tail.
@@ -614,6 +623,17 @@ void scatterPixels(const uint8_t* packed, uint8_t* out, size_t stride, size_t n)
     for (size_t j = 0; j < n; ++j) std::memcpy(out + j * stride, packed + j * kSize, kSize);
 }
 
+rt::StridedAttribute stridedOf(const NradAttribute& at, size_t first) {
+    const bool half = at.format == NRAD_FORMAT_F16;
+    const size_t stride = at.stride ? at.stride : (half ? 6 : 12);
+    return {static_cast<const uint8_t*>(at.data) + first * stride, stride, half};
+}
+
+// A G-buffer, tile by tile. Where the asset has a block driver, the driver reads each whole vector of texels
+// straight from the caller's attributes (rt::GBufferIo) and, without surfaces to shade, writes its pixels too;
+// the rest of a tile (the last partial vector, and the vectors the driver leaves to the general path, which it
+// converts into the tile's fp32 arrays) is gathered, evaluated, shaded and written here. Either way a point
+// gets the same bits.
 void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     Scratch s = carveScratch(scratch);
     auto tileAt = (reinterpret_cast<uintptr_t>(scratch) + kScratchBytes + 63) & ~uintptr_t(63);
@@ -624,53 +644,89 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     const size_t channels = g.outputChannels, pixel = channels * (half ? 2 : 4);
     const size_t outStride = g.outputStride ? g.outputStride : pixel;
     const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
+    int width = 0;
+    const bool fused = blockDriverOf(a, width) != nullptr;
+    const bool fusedOut = fused && !g.surfaces;
     for (size_t first = 0; first < g.count; first += kTilePoints) {
         const size_t n = std::min(kTilePoints, g.count - first);
-        gather(g.position, first, n, t.p, t.halves, conv);
-        gather(g.normal, first, n, t.n, t.halves, conv);
-        if (!eye) gather(g.direction, first, n, t.d, t.halves, conv);
+        // The points the block driver will not read: all of them without one, else the last partial vector.
+        const size_t from = fused ? n / size_t(width) * size_t(width) : 0;
+        gather(g.position, first + from, n - from, t.p + 3 * from, t.halves, conv);
+        gather(g.normal, first + from, n - from, t.n + 3 * from, t.halves, conv);
+        if (!eye) gather(g.direction, first + from, n - from, t.d + 3 * from, t.halves, conv);
         if (eye || !unit)
-            for (size_t j = 0; j < n; ++j) {
+            for (size_t j = from; j < n; ++j) {
                 float* d = t.d + 3 * j;
                 if (eye)
                     for (int k = 0; k < 3; ++k) d[k] = g.eye[k] - t.p[3 * j + size_t(k)];
                 normalise(d);
                 if (!unit) normalise(t.n + 3 * j);
             }
-        const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
-                            {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : t.flags};
-        evaluateTile(a, n, v, s);
-        // The output's channels in fp32, shaded where asked, then converted and stored with the output's stride.
-        for (size_t j = 0; j < n; ++j) {
-            float* rgb = t.rgb + 3 * j;
-            if (g.surfaces) {
-                NradSurface surface;  // any alignment
-                std::memcpy(&surface, reinterpret_cast<const uint8_t*>(g.surfaces) + (first + j) * surfaceStride, sizeof surface);
-                shadeOne(a, surface, t.n + 3 * j, t.d + 3 * j, rgb);
+        rt::GBufferIo io{};
+        if (fused) {
+            io.p = stridedOf(g.position, first);
+            io.n = stridedOf(g.normal, first);
+            if (!eye) io.d = stridedOf(g.direction, first);
+            io.eye = eye;
+            for (int k = 0; k < 3; ++k) io.eyePosition[k] = g.eye[k];
+            io.normaliseNormals = !unit;
+            io.normaliseDirections = eye || !unit;
+            io.safePoints = first + n == g.count ? n - 1 : n;  // the G-buffer's last point: exact reads
+            if (fusedOut) {
+                io.out = static_cast<uint8_t*>(g.output) + first * outStride;
+                io.outStride = outStride;
+                io.outHalf = half;
+                io.channels = int(channels);
+                io.done = t.done;
+                std::memset(t.done, 0, n);
             }
-            float* c = t.color + channels * j;
-            c[0] = rgb[0];
-            c[1] = rgb[1];
-            c[2] = rgb[2];
-            if (channels == 4) c[3] = 1.0f;
         }
-        const void* packed = t.color;
-        if (half) {
-            conv.toHalf(t.color, t.halves, channels * n);
-            packed = t.halves;
+        const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
+                            {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : t.flags,
+                            fused ? &io : nullptr};
+        evaluateTile(a, n, v, s);
+        // The pixels the driver did not write, run by run: the output's channels in fp32, shaded where asked,
+        // then converted and stored with the output's stride.
+        for (size_t runStart = 0; runStart < n;) {
+            if (fusedOut && t.done[runStart]) {  // the driver writes whole vectors
+                runStart += size_t(width);
+                continue;
+            }
+            size_t runEnd = runStart + 1;
+            while (runEnd < n && !(fusedOut && t.done[runEnd])) ++runEnd;
+            const size_t m = runEnd - runStart;
+            for (size_t j = runStart; j < runEnd; ++j) {
+                float* rgb = t.rgb + 3 * j;
+                if (g.surfaces) {
+                    NradSurface surface;  // any alignment
+                    std::memcpy(&surface, reinterpret_cast<const uint8_t*>(g.surfaces) + (first + j) * surfaceStride, sizeof surface);
+                    shadeOne(a, surface, t.n + 3 * j, t.d + 3 * j, rgb);
+                }
+                float* c = t.color + channels * (j - runStart);
+                c[0] = rgb[0];
+                c[1] = rgb[1];
+                c[2] = rgb[2];
+                if (channels == 4) c[3] = 1.0f;
+            }
+            const void* packed = t.color;
+            if (half) {
+                conv.toHalf(t.color, t.halves, channels * m);
+                packed = t.halves;
+            }
+            uint8_t* out = static_cast<uint8_t*>(g.output) + (first + runStart) * outStride;
+            const auto* bytes = static_cast<const uint8_t*>(packed);
+            if (outStride == pixel)
+                std::memcpy(out, packed, m * pixel);
+            else if (pixel == 6)
+                scatterPixels<6>(bytes, out, outStride, m);
+            else if (pixel == 8)
+                scatterPixels<8>(bytes, out, outStride, m);
+            else if (pixel == 12)
+                scatterPixels<12>(bytes, out, outStride, m);
+            else
+                scatterPixels<16>(bytes, out, outStride, m);
+            runStart = runEnd;
         }
-        uint8_t* out = static_cast<uint8_t*>(g.output) + first * outStride;
-        const auto* bytes = static_cast<const uint8_t*>(packed);
-        if (outStride == pixel)
-            std::memcpy(out, packed, n * pixel);
-        else if (pixel == 6)
-            scatterPixels<6>(bytes, out, outStride, n);
-        else if (pixel == 8)
-            scatterPixels<8>(bytes, out, outStride, n);
-        else if (pixel == 12)
-            scatterPixels<12>(bytes, out, outStride, n);
-        else
-            scatterPixels<16>(bytes, out, outStride, n);
     }
 }
 
@@ -688,6 +744,7 @@ NradStatus guarded(F&& f) {
 }  // namespace
 
 uint64_t nrad::rt::blendedBlocksSoFar() { return gBlendedBlocks.load(std::memory_order_relaxed); }
+uint64_t nrad::rt::gbufferBlocksSoFar() { return gGBufferBlocks.load(std::memory_order_relaxed); }
 
 extern "C" {
 
@@ -794,7 +851,7 @@ NradStatus nradEvaluate(NradAsset a, const float position[3], const float normal
     return guarded([&] {
         uint8_t flag = 0;
         rt::BatchIo v{{position, position + 1, position + 2}, {normal, normal + 1, normal + 2},
-                      {direction, direction + 1, direction + 2}, {rgb, rgb + 1, rgb + 2}, 3, &flag};
+                      {direction, direction + 1, direction + 2}, {rgb, rgb + 1, rgb + 2}, 3, &flag, nullptr};
         NradStatus st = evaluateBatch(*a, 1, v);
         if (pointFlags) *pointFlags = flag;
         return st;
@@ -807,7 +864,7 @@ NradStatus nradEvaluateBatch(NradAsset a, size_t count, const float* positions, 
     if (count == 0) return NRAD_OK;
     return guarded([&] {
         rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
-                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
+                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
         return evaluateBatch(*a, count, v);
     });
 }
@@ -818,7 +875,7 @@ NradStatus nradEvaluateBatchSoA(NradAsset a, size_t count, const NradBatchSoA* b
     if (!b->px || !b->py || !b->pz || !b->nx || !b->ny || !b->nz || !b->dx || !b->dy || !b->dz || !b->r || !b->g || !b->b)
         return NRAD_ERROR_INVALID_ARGUMENT;
     return guarded([&] {
-        rt::BatchIo v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags};
+        rt::BatchIo v{{b->px, b->py, b->pz}, {b->nx, b->ny, b->nz}, {b->dx, b->dy, b->dz}, {b->r, b->g, b->b}, 1, b->pointFlags, nullptr};
         return evaluateBatch(*a, count, v);
     });
 }
@@ -829,7 +886,7 @@ NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, con
     if (count == 0) return NRAD_OK;
     return guarded([&] {
         rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
-                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags};
+                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
         NradStatus st = evaluateBatch(*a, count, v);
         if (st != NRAD_OK) return st;
         for (size_t i = 0; i < count; ++i) shadeOne(*a, surfaces[i], normals + 3 * i, directions + 3 * i, rgb + 3 * i);

@@ -11,7 +11,11 @@
 //   roundNearest, timesPow2(q, n) = q 2^n for integral n in [-126, 127], cvtTrunc (F -> I), cvtFloat
 //   (I -> F), addi, mullo, mini, storei, firstLane (lane 0 of an I), geMask/leMask (ordered compares)
 //   and equalMask (of two F or two I) -> bit mask of W lanes,
-//   deinterleave3 / interleave3 (x0 y0 z0 x1 ... <-> three vectors).
+//   deinterleave3 / interleave3 (x0 y0 z0 x1 ... <-> three vectors), sqrt, loadHalf (W fp16 values -> F)
+//   and storeHalf (F -> W fp16 values, saturated at 65504 as format::floatToHalf does; the input is never NaN);
+//   kStridedLoads: whether it has loadStrided3 (three fp32 components of W points `stride` bytes apart, 16
+//   bytes read per point) and loadStrided3Half (three fp16 components, 8 bytes read per point);
+//   kHalfRgbaStore: whether it has storeHalfRgba (three F as W fp16 RGBA pixels of alpha 1, `stride` bytes apart).
 
 // exp(x) - 1 in the polynomial of kernels.h (input clamped to [kExpLo, kExpHi]).
 template <class V>
@@ -152,9 +156,9 @@ inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) 
 // some lane is left without an occupied support (the general path flags it).
 constexpr int kMaxBoxVoxels = 8;
 
-template <class V, int Stride>
+template <class V>
 bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typename V::F n[3], const typename V::F d[3],
-                 const typename V::I c[3], size_t first) {
+                 const typename V::I c[3], typename V::F acc[3]) {
     using F = typename V::F;
     constexpr int W = V::W;
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
@@ -225,7 +229,7 @@ bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typena
         }
     }
     if ((~V::leMask(sum, zero) & all) != all) return false;
-    F acc[3] = {zero, zero, zero};
+    for (int ch = 0; ch < 3; ++ch) acc[ch] = zero;
     for (int i = 0; i < count; ++i) {
         const Term& term = terms[i];
         F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
@@ -243,8 +247,112 @@ bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typena
         const F weight = V::div(term.raw, sum);
         for (int ch = 0; ch < 3; ++ch) acc[ch] = V::select(kept, V::add(acc[ch], V::mul(weight, out[ch])), acc[ch]);
     }
-    store3<V, Stride>(ctx.io.out, first, acc);
     return true;
+}
+
+// ----- G-buffers: strided fp32/fp16 attributes in, pixels out (GBufferIo) ----------------------------------------
+
+// Three components of W points of an attribute, reading exactly each point's bytes.
+template <class V>
+inline void loadExact(const StridedAttribute& a, size_t first, typename V::F v[3]) {
+    const uint8_t* s = a.base + first * a.stride;
+    if (a.half) {
+        alignas(64) uint16_t h[3][V::W];
+        for (int l = 0; l < V::W; ++l, s += a.stride) {
+            uint16_t xyz[3];
+            std::memcpy(xyz, s, sizeof xyz);
+            for (int k = 0; k < 3; ++k) h[k][l] = xyz[k];
+        }
+        for (int k = 0; k < 3; ++k) v[k] = V::loadHalf(h[k]);
+    } else {
+        alignas(64) float f[3][V::W];
+        for (int l = 0; l < V::W; ++l, s += a.stride) {
+            float xyz[3];
+            std::memcpy(xyz, s, sizeof xyz);
+            for (int k = 0; k < 3; ++k) f[k][l] = xyz[k];
+        }
+        for (int k = 0; k < 3; ++k) v[k] = V::load(f[k]);
+    }
+}
+
+template <class V>
+NRAD_ALWAYS_INLINE inline void loadAttribute(const StridedAttribute& a, size_t first, bool wide, typename V::F v[3]) {
+    (void)wide;
+    if constexpr (V::kStridedLoads) {
+        if (wide) {
+            const uint8_t* s = a.base + first * a.stride;
+            if (a.half)
+                V::loadStrided3Half(s, a.stride, v);
+            else
+                V::loadStrided3(s, a.stride, v);
+            return;
+        }
+    }
+    loadExact<V>(a, first, v);
+}
+
+// v / |v| lane by lane, NaN where |v|^2 is zero or not finite: runtime.cpp's normalise(), the same operations
+// in the same order.
+template <class V>
+inline void normalise3(typename V::F v[3]) {
+    using F = typename V::F;
+    const F zero = V::zero();
+    const F len2 = V::add(V::add(V::mul(v[0], v[0]), V::mul(v[1], v[1])), V::mul(v[2], v[2]));
+    const unsigned ok = ~V::leMask(len2, zero) & V::equalMask(V::mul(len2, zero), zero);  // > 0 and finite
+    const F inv = V::div(V::set1(1.0f), V::sqrt(len2));
+    uint32_t nanBits = 0x7FC00000u;
+    float nan;
+    std::memcpy(&nan, &nanBits, 4);
+    for (int k = 0; k < 3; ++k) v[k] = V::select(ok, V::mul(v[k], inv), V::set1(nan));
+}
+
+// A block's position, normal and direction from the G-buffer, as runtime.cpp's shadeGBuffer prepares them.
+template <class V>
+NRAD_ALWAYS_INLINE inline void loadGBuffer(const GBufferIo& g, size_t first, typename V::F p[3], typename V::F n[3], typename V::F d[3]) {
+    const bool wide = first + size_t(V::W) <= g.safePoints;
+    loadAttribute<V>(g.p, first, wide, p);
+    loadAttribute<V>(g.n, first, wide, n);
+    if (g.eye)
+        for (int k = 0; k < 3; ++k) d[k] = V::sub(V::set1(g.eyePosition[k]), p[k]);
+    else
+        loadAttribute<V>(g.d, first, wide, d);
+    if (g.normaliseDirections) normalise3<V>(d);
+    if (g.normaliseNormals) normalise3<V>(n);
+}
+
+// W pixels of radiance into the G-buffer's output.
+template <class V>
+inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rgb[3]) {
+    uint8_t* o = g.out + first * g.outStride;
+    if constexpr (V::kHalfRgbaStore) {
+        if (g.outHalf && g.channels == 4) {
+            V::storeHalfRgba(o, g.outStride, rgb);
+            return;
+        }
+    }
+    if (g.outHalf) {
+        alignas(64) uint16_t h[3][V::W];
+        for (int c = 0; c < 3; ++c) V::storeHalf(h[c], rgb[c]);
+        for (int l = 0; l < V::W; ++l, o += g.outStride) {
+            const uint16_t px[4] = {h[0][l], h[1][l], h[2][l], 0x3C00};  // alpha 1
+            std::memcpy(o, px, size_t(g.channels) * 2);
+        }
+    } else {
+        alignas(64) float f[3][V::W];
+        for (int c = 0; c < 3; ++c) V::store(f[c], rgb[c]);
+        for (int l = 0; l < V::W; ++l, o += g.outStride) {
+            const float px[4] = {f[0][l], f[1][l], f[2][l], 1.0f};
+            std::memcpy(o, px, size_t(g.channels) * 4);
+        }
+    }
+}
+
+// A G-buffer block's prepared inputs into BatchIo's arrays, for the paths that read them there.
+template <class V, int Stride>
+inline void spill(const BatchIo& io, size_t first, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3]) {
+    store3<V, Stride>(const_cast<float* const*>(io.p), first, p);
+    store3<V, Stride>(const_cast<float* const*>(io.n), first, n);
+    store3<V, Stride>(const_cast<float* const*>(io.d), first, d);
 }
 
 // BlockDriver (kernels.h), for one layout.
@@ -259,16 +367,39 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
     for (size_t b = 0; b < blocks; ++b) {
         const size_t first = b * size_t(W);
         F p[3], n[3], d[3];
-        load3<V, Stride>(ctx.io.p, first, p);
-        load3<V, Stride>(ctx.io.n, first, n);
-        load3<V, Stride>(ctx.io.d, first, d);
+        const GBufferIo* gb = ctx.io.gbuffer;
+        if (gb) {
+            loadGBuffer<V>(*gb, first, p, n, d);
+            if (!gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the caller shades every point
+        } else {
+            load3<V, Stride>(ctx.io.p, first, p);
+            load3<V, Stride>(ctx.io.n, first, n);
+            load3<V, Stride>(ctx.io.d, first, d);
+        }
+        // This block to the general path, which reads the points from BatchIo.
+        auto defer = [&] {
+            if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);
+            def.blocks[def.blockCount++] = uint32_t(b);
+        };
+        // This block's results: into the G-buffer's pixels or BatchIo::out.
+        auto emit = [&](const F rgb[3]) {
+            if (gb && gb->out) {
+                storePixels<V>(*gb, first, rgb);
+                for (int l = 0; l < W; ++l) gb->done[first + size_t(l)] = 1;
+                ++def.gbufferBlocks;
+            } else {
+                store3<V, Stride>(ctx.io.out, first, rgb);
+            }
+            if (ctx.io.flags)
+                for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+        };
         // Finite normal and direction: 0 x (their sum) is 0, not NaN (a sum that overflows only sends the
         // block to the general path). Positions inside [lower, upper] (false for NaN): the format's rule.
         F sum = V::add(V::add(V::add(n[0], n[1]), V::add(n[2], d[0])), V::add(d[1], d[2]));
         unsigned ok = V::equalMask(V::mul(sum, V::zero()), V::zero());
         for (int k = 0; k < 3; ++k) ok &= V::geMask(p[k], V::set1(g.lower[k])) & V::leMask(p[k], V::set1(g.upper[k]));
         if (ok != all) {  // some point is invalid or outside: the block takes the general path
-            def.blocks[def.blockCount++] = uint32_t(b);
+            defer();
             continue;
         }
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
@@ -292,19 +423,19 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         const int32_t voxel0 = V::firstLane(voxel);
         const bool oneVoxel = V::equalMask(voxel, V::seti(voxel0)) == all;
         if (inBand & all) {  // blended: in registers when the block spans a few voxels
-            if (!evalBlended<V, Stride>(ctx, t, n, d, c, first)) {
-                def.blocks[def.blockCount++] = uint32_t(b);
+            F acc[3];
+            if (!evalBlended<V>(ctx, t, n, d, c, acc)) {
+                defer();
                 continue;
             }
             ++def.blendedBlocks;
-            if (ctx.io.flags)
-                for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+            emit(acc);
             continue;
         }
         if (oneVoxel) {
             int32_t network = g.dense[voxel0];
             if (network < 0) {
-                def.blocks[def.blockCount++] = uint32_t(b);
+                defer();
                 continue;
             }
             NetworkView net = ctx.networks;
@@ -314,9 +445,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             F out[kOutputs];
             evalNetwork<V>(net, in, out);
             toRadiance<V>(net, out);
-            store3<V, Stride>(ctx.io.out, first, out);
-            if (ctx.io.flags)
-                for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+            emit(out);
             continue;
         }
         // Located, but in several voxels: record each point for the grouped pass.
@@ -326,9 +455,10 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         bool occupied = true;
         for (int l = 0; l < W; ++l) occupied &= (networks[l] = g.dense[voxels[l]]) >= 0;
         if (!occupied) {
-            def.blocks[def.blockCount++] = uint32_t(b);
+            defer();
             continue;
         }
+        if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the grouped pass reads n and d
         alignas(64) float lx[W], ly[W], lz[W];
         V::store(lx, local[0]);
         V::store(ly, local[1]);

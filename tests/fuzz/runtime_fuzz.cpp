@@ -123,6 +123,15 @@ void exercise(NradAsset asset, const NradAssetInfo& info, const uint8_t* data, s
     g.output = out.data();
     g.outputChannels = 4;
     if (nradShadeGBuffer(asset, &g, nullptr, 0) != NRAD_OK || !finite(out.data(), out.size())) std::abort();
+    // Unshaded into tightly packed RGBA fp16 (the vector kernels write these pixels themselves), texels and
+    // pixels ending their allocations, so that a read or write past the last one is the sanitizers' to see.
+    std::vector<uint16_t> halves(4 * n);
+    g.surfaces = nullptr;
+    g.output = halves.data();
+    g.outputFormat = NRAD_FORMAT_F16;
+    if (nradShadeGBuffer(asset, &g, nullptr, 0) != NRAD_OK) std::abort();
+    for (size_t i = 0; i < halves.size(); ++i)
+        if ((halves[i] & 0x7C00) == 0x7C00 || (halves[i] & 0x8000 && halves[i] != 0x8000)) std::abort();  // Inf, NaN, < 0
 
     size_t bytes = 0;
     if (nradGetGpuBufferSize(asset, &bytes) == NRAD_OK) {
