@@ -253,7 +253,6 @@ struct GBufferTile {
     float p[3 * kTilePoints], n[3 * kTilePoints], d[3 * kTilePoints], rgb[3 * kTilePoints];
     float color[4 * kTilePoints];  // the output's channels in fp32
     uint16_t halves[4 * kTilePoints];  // fp16 staging, in and out
-    uint8_t flags[kTilePoints];
     uint8_t done[kTilePoints];  // pixels the block driver wrote itself (rt::GBufferIo)
 };
 constexpr size_t kGBufferScratchBytes = sizeof(GBufferTile) + 64;
@@ -682,7 +681,7 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
             }
         }
         const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
-                            {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : t.flags,
+                            {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : nullptr,
                             fused ? &io : nullptr};
         evaluateTile(a, n, v, s);
         // The pixels the driver did not write, run by run: the output's channels in fp32, shaded where asked,

@@ -252,25 +252,27 @@ bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typena
 
 // ----- G-buffers: strided fp32/fp16 attributes in, pixels out (GBufferIo) ----------------------------------------
 
-// Three components of W points of an attribute, reading exactly each point's bytes.
+// Three components of W points of an attribute, reading exactly each point's bytes: into rows of T (float or
+// the fp16 bits), transposed.
+template <class V, class T>
+inline void copyRows(const StridedAttribute& a, size_t first, T rows[3][V::W]) {
+    const uint8_t* s = a.base + first * a.stride;
+    for (int l = 0; l < V::W; ++l, s += a.stride) {
+        T xyz[3];
+        std::memcpy(xyz, s, sizeof xyz);
+        for (int k = 0; k < 3; ++k) rows[k][l] = xyz[k];
+    }
+}
+
 template <class V>
 inline void loadExact(const StridedAttribute& a, size_t first, typename V::F v[3]) {
-    const uint8_t* s = a.base + first * a.stride;
     if (a.half) {
         alignas(64) uint16_t h[3][V::W];
-        for (int l = 0; l < V::W; ++l, s += a.stride) {
-            uint16_t xyz[3];
-            std::memcpy(xyz, s, sizeof xyz);
-            for (int k = 0; k < 3; ++k) h[k][l] = xyz[k];
-        }
+        copyRows<V>(a, first, h);
         for (int k = 0; k < 3; ++k) v[k] = V::loadHalf(h[k]);
     } else {
         alignas(64) float f[3][V::W];
-        for (int l = 0; l < V::W; ++l, s += a.stride) {
-            float xyz[3];
-            std::memcpy(xyz, s, sizeof xyz);
-            for (int k = 0; k < 3; ++k) f[k][l] = xyz[k];
-        }
+        copyRows<V>(a, first, f);
         for (int k = 0; k < 3; ++k) v[k] = V::load(f[k]);
     }
 }
