@@ -120,8 +120,24 @@ struct BatchIo {
     const GBufferIo* gbuffer;  // may be null
 };
 
+// A kd-tree partition as the block driver locates whole vectors in it (the grid above holds the box, the
+// lattice factors and, in `dense`, the leaf -> network table). A vector whose first point's leaf holds every
+// point of the vector away from every blending band is evaluated in registers; any other goes to the general
+// path. nodes: 3 words per node (format::TreeNode: axis, split, child); starts: eval::buildTreeStarts' table.
+struct LocateTree {
+    const uint32_t* nodes;  // null: the grid
+    const uint32_t* starts;
+    uint32_t startDims[3];
+    float startScale[3];
+    // Per leaf, 12 floats: the open box of lattice coordinates in which a point has this leaf alone with weight 1
+    // (lo[3], hi[3]: inside the leaf and every ancestor's blending band, less a rounding margin), and the
+    // leaf's lattice box as eval::localInBox takes it (float(lo)[3], float(hi - lo)[3]).
+    const float* leaves;
+};
+
 struct BlockContext {
     LocateGrid grid;
+    LocateTree tree;
     NetworkView networks;  // of network 0; params advance by paramsPerNetwork per network
     uint32_t paramsPerNetwork;
     const float* scales;  // per network
@@ -138,6 +154,7 @@ struct Deferred {
     size_t count;
     size_t blendedBlocks;  // blocks blended in registers (evalBlended)
     size_t gbufferBlocks;  // G-buffer blocks whose pixels the driver wrote
+    size_t treeBlocks;  // blocks located in a kd-tree's leaf and evaluated in registers
 };
 
 // Blocks blended in registers since the process started, over all threads: lets tests see that the
@@ -145,6 +162,8 @@ struct Deferred {
 uint64_t blendedBlocksSoFar();
 // G-buffer blocks read, evaluated and written in registers since the process started (the same purpose).
 uint64_t gbufferBlocksSoFar();
+// Blocks of kd-tree assets located and evaluated in registers since the process started (the same purpose).
+uint64_t treeBlocksSoFar();
 
 // Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
 // blending band and in one occupied voxel is located and evaluated in vector registers, with its results and

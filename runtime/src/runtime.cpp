@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -39,6 +40,7 @@ struct NradAsset_ {
     uint32_t paramsPerNetwork = 0;
     std::vector<int32_t> denseLookup;  // cell -> network, -1 = empty; used when the grid is small enough
     eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves), its band
+    std::vector<float> treeLeaves;  // kd-tree assets: rt::LocateTree::leaves (treeLeafBoxes)
     std::vector<float> scales;  // per network: the voxel's output scale
     std::atomic<int> kernel{NRAD_KERNEL_AUTO};  // nradSetAssetKernel; AUTO: the process-wide choice
 };
@@ -69,6 +71,7 @@ NradKernel bestKernel() {
 std::atomic<int> gKernel{NRAD_KERNEL_AUTO};
 std::atomic<uint64_t> gBlendedBlocks{0};
 std::atomic<uint64_t> gGBufferBlocks{0};
+std::atomic<uint64_t> gTreeBlocks{0};
 
 NradKernel activeKernel() {
     int k = gKernel.load(std::memory_order_relaxed);
@@ -121,6 +124,50 @@ void writeMessage(char* message, size_t size, const std::string& text) {
     message[n] = '\0';
 }
 
+// rt::LocateTree::leaves of a kd-tree partition: per leaf, the open box of lattice coordinates whose points
+// have that leaf alone with weight 1 (eval::treeSupports), and the leaf's box as floats. Walking down from the
+// whole lattice, a node's lower child keeps t < split - width and its upper child t > split + width (outside
+// the node's blending band, on its side); each bound moves inwards by a margin of 1e-3 lattice voxels (more
+// on lattices past 256 voxels, 30 float ulps at least) so that no rounding of t - split puts a point of the
+// box on the other side of the descent's test. The grid's own faces need no margin.
+std::vector<float> treeLeafBoxes(const eval::Partition& part) {
+    const std::vector<format::TreeNode>& nodes = part.tree;
+    std::vector<float> out(size_t(part.cells) * 12, 0.0f);
+    uint32_t maxDim = 1;
+    for (int k = 0; k < 3; ++k) maxDim = std::max(maxDim, part.grid.dims[k]);
+    const float margin = 1e-3f * std::max(1.0f, float(maxDim) / 256.0f);
+    struct Item {
+        uint32_t node;
+        float lo[3], hi[3];
+    };
+    std::vector<Item> stack{{0, {0.0f, 0.0f, 0.0f}, {float(part.grid.dims[0]), float(part.grid.dims[1]), float(part.grid.dims[2])}}};
+    while (!stack.empty()) {
+        const Item it = stack.back();
+        stack.pop_back();
+        const format::TreeNode& n = nodes[it.node];
+        if (n.axis == format::kTreeLeaf) {
+            float* o = &out[size_t(n.child) * 12];
+            const format::TreeBox& b = part.boxes[n.child];
+            for (int k = 0; k < 3; ++k) {
+                o[k] = it.lo[k];
+                o[3 + k] = it.hi[k];
+                o[6 + k] = float(b.lo[k]);
+                o[9 + k] = float(b.hi[k] - b.lo[k]);
+            }
+            continue;
+        }
+        const float split = float(n.split), w = part.widths[it.node];
+        Item lower = it, upper = it;
+        lower.node = n.child;
+        lower.hi[n.axis] = std::min(lower.hi[n.axis], split - w - margin);
+        upper.node = n.child + 1;
+        upper.lo[n.axis] = std::max(upper.lo[n.axis], split + w + margin);
+        stack.push_back(lower);
+        stack.push_back(upper);
+    }
+    return out;
+}
+
 NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, char* message, size_t messageSize) {
     if (!out) return NRAD_ERROR_INVALID_ARGUMENT;
     *out = nullptr;
@@ -156,6 +203,7 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
     a->partition = eval::Partition(a->asset);
     std::vector<format::TreeNode>().swap(a->asset.tree);  // the partition holds it
+    if (!a->partition.tree.empty()) a->treeLeaves = treeLeafBoxes(a->partition);
     // A dense cell -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->partition.cells;
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
@@ -214,10 +262,12 @@ rt::BlockDriver blockDriver(NradKernel k, int& width) {
     return nullptr;
 }
 
-// The asset's block driver and its width: grid assets on a vector kernel; else null and 0.
+// The asset's block driver and its width: on a vector kernel, for assets with a dense cell -> network table
+// (kd-trees: with their start table too); else null and 0.
 rt::BlockDriver blockDriverOf(const NradAsset_& a, int& width) {
     width = 0;
-    return a.denseLookup.empty() || !a.partition.tree.empty() ? nullptr : blockDriver(kernelOf(a), width);
+    const bool tree = !a.partition.tree.empty();
+    return a.denseLookup.empty() || (tree && a.partition.starts.empty()) ? nullptr : blockDriver(kernelOf(a), width);
 }
 
 // ----- scratch: everything evaluation needs besides the caller's arrays --------------------------------------
@@ -345,7 +395,7 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
 // At most kTilePoints points.
 void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scratch& s) {
     const size_t nets = a.asset.voxels.size();
-    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0, 0};
+    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0, 0, 0};
     const NradKernel kind = kernelOf(a);
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
@@ -369,6 +419,20 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
         }
         ctx.grid.band = a.partition.band;
         ctx.grid.dense = a.denseLookup.data();
+        if (!a.partition.tree.empty()) {
+            static_assert(sizeof(format::TreeNode) == 12 && offsetof(format::TreeNode, axis) == 0 &&
+                              offsetof(format::TreeNode, split) == 4 && offsetof(format::TreeNode, child) == 8,
+                          "rt::LocateTree reads nodes as three words");
+            static_assert(format::kTreeLeaf == 3, "rt::LocateTree's leaf mark");
+            const eval::TreeView view = a.partition.view();
+            ctx.tree.nodes = reinterpret_cast<const uint32_t*>(view.nodes);
+            ctx.tree.starts = view.starts;
+            for (int k = 0; k < 3; ++k) {
+                ctx.tree.startDims[k] = view.startDims[k];
+                ctx.tree.startScale[k] = view.startScale[k];
+            }
+            ctx.tree.leaves = a.treeLeaves.data();
+        }
         ctx.networks = first;
         ctx.paramsPerNetwork = a.paramsPerNetwork;
         ctx.scales = a.scales.data();
@@ -376,6 +440,7 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
         driver(ctx, blocks, def);
         if (def.blendedBlocks) gBlendedBlocks.fetch_add(def.blendedBlocks, std::memory_order_relaxed);
         if (def.gbufferBlocks) gGBufferBlocks.fetch_add(def.gbufferBlocks, std::memory_order_relaxed);
+        if (def.treeBlocks) gTreeBlocks.fetch_add(def.treeBlocks, std::memory_order_relaxed);
     }
     // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
     //    tail.
@@ -744,6 +809,7 @@ NradStatus guarded(F&& f) {
 
 uint64_t nrad::rt::blendedBlocksSoFar() { return gBlendedBlocks.load(std::memory_order_relaxed); }
 uint64_t nrad::rt::gbufferBlocksSoFar() { return gGBufferBlocks.load(std::memory_order_relaxed); }
+uint64_t nrad::rt::treeBlocksSoFar() { return gTreeBlocks.load(std::memory_order_relaxed); }
 
 extern "C" {
 

@@ -349,6 +349,59 @@ inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rg
     }
 }
 
+// A block of valid points of a kd-tree asset: when the leaf of the first point holds every point of the block
+// with weight 1 (all of them inside the leaf's open box clear of blending bands; LocateTree), that leaf's
+// network over the whole vector, the position input exactly as eval::treeSupports computes it. Returns false,
+// writing nothing, otherwise (or when the leaf is empty): the general path locates the points one by one.
+template <class V>
+bool evalTreeBlock(const BlockContext& ctx, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3],
+                   typename V::F out[3]) {
+    using F = typename V::F;
+    constexpr int W = V::W;
+    constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
+    const LocateGrid& g = ctx.grid;
+    const LocateTree& tree = ctx.tree;
+    F t[3];
+    float first[3];
+    for (int k = 0; k < 3; ++k) {
+        t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));  // eval::gridCoordinate
+        alignas(64) float lanes[W];
+        V::store(lanes, t[k]);
+        first[k] = lanes[0];
+    }
+    // The first point's leaf: its start-table cell's node, then down the tree by the planes alone (inside the
+    // open box the bands do not matter).
+    size_t at = 0;
+    for (int k = 2; k >= 0; --k) {
+        const int c = int(first[k] * tree.startScale[k]);
+        at = at * tree.startDims[k] + size_t(c < 0 ? 0 : (c >= int(tree.startDims[k]) ? int(tree.startDims[k]) - 1 : c));
+    }
+    uint32_t node = tree.starts[at];
+    while (tree.nodes[3 * node] != 3u) {  // format::kTreeLeaf
+        const uint32_t* nd = tree.nodes + 3 * node;
+        node = first[nd[0]] >= float(nd[1]) ? nd[2] + 1 : nd[2];
+    }
+    const uint32_t leaf = tree.nodes[3 * node + 2];
+    const float* box = tree.leaves + 12 * size_t(leaf);
+    unsigned inside = all;
+    for (int k = 0; k < 3; ++k) inside &= ~V::leMask(t[k], V::set1(box[k])) & ~V::geMask(t[k], V::set1(box[3 + k]));
+    if (inside != all) return false;
+    const int32_t network = g.dense[leaf];
+    if (network < 0) return false;
+    const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
+    F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
+    for (int k = 0; k < 3; ++k) {  // eval::localInBox, clamped to [-1, 1]
+        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::set1(box[6 + k]))), V::set1(box[9 + k])), one);
+        in[k] = V::min(V::max(q, V::sub(zero, one)), one);
+    }
+    NetworkView net = ctx.networks;
+    net.params += size_t(network) * ctx.paramsPerNetwork;
+    net.scale = ctx.scales[network];
+    evalNetwork<V>(net, in, out);
+    toRadiance<V>(net, out);
+    return true;
+}
+
 // A G-buffer block's prepared inputs into BatchIo's arrays, for the paths that read them there.
 template <class V, int Stride>
 inline void spill(const BatchIo& io, size_t first, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3]) {
@@ -402,6 +455,16 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         for (int k = 0; k < 3; ++k) ok &= V::geMask(p[k], V::set1(g.lower[k])) & V::leMask(p[k], V::set1(g.upper[k]));
         if (ok != all) {  // some point is invalid or outside: the block takes the general path
             defer();
+            continue;
+        }
+        if (ctx.tree.nodes) {  // a kd-tree asset: one leaf for the whole block, or the general path
+            F out[kOutputs];
+            if (!evalTreeBlock<V>(ctx, p, n, d, out)) {
+                defer();
+                continue;
+            }
+            ++def.treeBlocks;
+            emit(out);
             continue;
         }
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no

@@ -240,6 +240,87 @@ Points coherentPoints(const format::Asset& a, uint32_t seed) {
     return pts;
 }
 
+// Coherent vectors of kd-tree assets are located in registers (the first point's leaf, every point inside it
+// clear of the bands) and must give the bits of the general path: runs of points in each leaf of a random tree
+// (planes hit exactly now and then, bad points among them) through every vector kernel, in one batch against
+// one point per call (the general path); and the uniform tree against the grid on coherent runs.
+TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
+    const uint64_t before = rt::treeBlocksSoFar();
+    for (float band : {0.0f, 0.125f}) {
+        SCOPED_TRACE("band " + std::to_string(band));
+        format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 23,
+                                         glm::uvec3(4, 3, 5), band);
+        format::Asset uniform = grid;
+        uniform.header.flags |= format::kFlagTree;
+        uniform.tree = format::uniformTree(grid.grid.dims);
+        format::Asset adaptive = grid;
+        for (int k = 0; k < 3; ++k) adaptive.grid.dims[k] = 16;
+        adaptive.header.flags |= format::kFlagTree;
+        adaptive.tree = test::randomTree(adaptive.grid.dims, 60, 5);
+        uint32_t leaves = 0;
+        std::vector<format::TreeBox> boxes;
+        ASSERT_TRUE(format::validateTree(adaptive.grid.dims, adaptive.tree, leaves, &boxes));
+        adaptive.voxels.clear();
+        for (uint32_t v = 0; v < leaves; ++v)
+            if (v % 5 != 2) adaptive.voxels.push_back({v, 0.5f + 0.01f * float(v)});
+        std::mt19937 rng(8);
+        adaptive.weights.resize(adaptive.voxels.size() * adaptive.topology.parameterCount());
+        for (float& w : adaptive.weights) w = format::halfToFloat(format::floatToHalf(float(int(rng() % 1201) - 600) / 1000.0f));
+        // Runs of points in each leaf, in leaf order.
+        std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
+        Points pts;
+        const format::Grid& g = adaptive.grid;
+        for (int round = 0; round < 2; ++round)
+            for (uint32_t leaf = 0; leaf < leaves; ++leaf) {
+                const int run = int(rng() % 90);
+                for (int i = 0; i < run; ++i) {
+                    for (int k = 0; k < 3; ++k) {
+                        const float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+                        const float f = i % 23 == 4 ? 0.0f : u(rng);  // the leaf's lower plane now and then
+                        const float lattice = float(boxes[leaf].lo[k]) + f * float(boxes[leaf].hi[k] - boxes[leaf].lo[k]);
+                        pts.p.push_back(std::min(g.upper[k], g.lower[k] + size * lattice));
+                        pts.n.push_back(s(rng));
+                        pts.d.push_back(s(rng));
+                    }
+                    const size_t at = pts.p.size() - 3;
+                    if (rng() % 89 == 0) pts.n[at] = std::nanf("");
+                    if (rng() % 89 == 0) pts.p[at] = g.upper[0] + 0.25f;
+                }
+            }
+        const std::vector<uint8_t> gb = format::encode(grid), ub = format::encode(uniform), ab = format::encode(adaptive);
+        nrad::Asset ga, ua, aa;
+        ASSERT_EQ(ga.loadFromMemory(gb.data(), gb.size()), NRAD_OK);
+        ASSERT_EQ(ua.loadFromMemory(ub.data(), ub.size()), NRAD_OK);
+        ASSERT_EQ(aa.loadFromMemory(ab.data(), ab.size()), NRAD_OK);
+        const size_t n = pts.p.size() / 3;
+        ASSERT_GT(n, 2000u);
+        Points grided = coherentPoints(grid, 6);
+        const size_t m = grided.p.size() / 3;
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> batch(3 * n), single(3 * n);
+            std::vector<uint8_t> flags(n);
+            ASSERT_EQ(aa.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), batch.data(), flags.data()), NRAD_OK);
+            for (size_t i = 0; i < n; ++i) {
+                uint32_t flag = 0;
+                ASSERT_EQ(nradEvaluate(aa.get(), &pts.p[3 * i], &pts.n[3 * i], &pts.d[3 * i], &single[3 * i], &flag), NRAD_OK);
+                ASSERT_EQ(uint32_t(flags[i]), flag) << "kernel " << k << " point " << i;
+                ASSERT_EQ(std::memcmp(&batch[3 * i], &single[3 * i], 12), 0) << "kernel " << k << " point " << i;
+            }
+            std::vector<float> a(3 * m), b(3 * m);
+            std::vector<uint8_t> fa(m), fb(m);
+            ASSERT_EQ(ga.evaluateBatch(m, grided.p.data(), grided.n.data(), grided.d.data(), a.data(), fa.data()), NRAD_OK);
+            ASSERT_EQ(ua.evaluateBatch(m, grided.p.data(), grided.n.data(), grided.d.data(), b.data(), fb.data()), NRAD_OK);
+            EXPECT_EQ(fa, fb);
+            EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << "kernel " << k;
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+    if (kernels().size() > 1) {
+        EXPECT_GT(rt::treeBlocksSoFar(), before) << "no vector was located in registers";
+    }
+}
+
 // The contract's own vectors (nrad/eval.h: locate -> network, encodeInputs, forward, decodeOutputs) against
 // every kernel, random and coherent batches: the scalar kernel is eval.h itself (bit for bit); the SIMD
 // kernels fuse multiply-adds and order their sums their own way (1e-5 of max(1, value)).
