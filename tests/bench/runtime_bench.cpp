@@ -309,9 +309,11 @@ int main(int argc, char** argv) {
     // planes, leaves of many sizes, every leaf a network), incoherent points, one thread: evaluations/s through the public API (locate
     // included), and in the same run the locate alone (eval::Partition::supports + keepOccupied, what
     // the runtime calls per point) over the same points.
+    // Then coherent batches: the same points sorted by their leaf (for the grid, by their voxel), as a
+    // G-buffer's runs of pixels on one surface are: vectors inside one leaf are located in registers.
     std::printf("\nkd-tree partition, 1 thread, incoherent points, kernel %d (blend band %g):\n", int(auto_), double(band));
-    std::printf("  %8s %6s %10s %14s %14s %12s %14s\n", "leaves", "depth", "bytes", "M evals/s", "M locates/s", "locate share",
-                "grid M evals/s");
+    std::printf("  %8s %6s %10s %14s %14s %12s %14s %16s %16s\n", "leaves", "depth", "bytes", "M evals/s", "M locates/s",
+                "locate share", "grid M evals/s", "sorted: tree", "sorted: grid");
     for (uint32_t leaves : {27u, 512u, 4096u}) {
         nrad::format::Asset t;
         for (int k = 0; k < 3; ++k) {
@@ -372,8 +374,26 @@ int main(int argc, char** argv) {
             fma_peak::gSink = fma_peak::gSink + float(acc);
             bestLocate = std::max(bestLocate, double(points) / seconds(t0, clock_type::now()));
         }
-        std::printf("  %8u %6u %10zu %14.1f %14.1f %11.1f%% %14.1f\n", leafCount, depth, tb.size(), evals * 1e-6,
-                    bestLocate * 1e-6, 100.0 * evals / bestLocate, gridEvals * 1e-6);
+        // Sorted by cell, stably: runs of points in one leaf (one voxel).
+        auto sortedBy = [&](const nrad::eval::Partition& by) {
+            std::vector<std::pair<int64_t, size_t>> keys(points);
+            for (size_t i = 0; i < points; ++i) keys[i] = {by.cellOf(&incoherent.p[3 * i]), i};
+            std::sort(keys.begin(), keys.end());
+            Points sorted;
+            for (const auto& [cell, i] : keys) {
+                (void)cell;
+                sorted.p.insert(sorted.p.end(), &incoherent.p[3 * i], &incoherent.p[3 * i] + 3);
+                sorted.n.insert(sorted.n.end(), &incoherent.n[3 * i], &incoherent.n[3 * i] + 3);
+                sorted.d.insert(sorted.d.end(), &incoherent.d[3 * i], &incoherent.d[3 * i] + 3);
+            }
+            return sorted;
+        };
+        nrad::format::Asset gridDecoded;
+        nrad::format::decode(gb.data(), gb.size(), gridDecoded);
+        const double sortedTree = evaluationsPerSecond(ta, sortedBy(part), 1, repeat);
+        const double sortedGrid = evaluationsPerSecond(ga, sortedBy(nrad::eval::Partition(gridDecoded)), 1, repeat);
+        std::printf("  %8u %6u %10zu %14.1f %14.1f %11.1f%% %14.1f %16.1f %16.1f\n", leafCount, depth, tb.size(), evals * 1e-6,
+                    bestLocate * 1e-6, 100.0 * evals / bestLocate, gridEvals * 1e-6, sortedTree * 1e-6, sortedGrid * 1e-6);
         nradReleaseAsset(ta);
         nradReleaseAsset(ga);
     }
