@@ -349,44 +349,38 @@ inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rg
     }
 }
 
-// A block of valid points of a kd-tree asset: when the leaf of the first point holds every point of the block
-// with weight 1 (all of them inside the leaf's open box clear of blending bands; LocateTree), that leaf's
-// network over the whole vector, the position input exactly as eval::treeSupports computes it. Returns false,
-// writing nothing, otherwise (or when the leaf is empty): the general path locates the points one by one.
-template <class V>
-bool evalTreeBlock(const BlockContext& ctx, const typename V::F p[3], const typename V::F n[3], const typename V::F d[3],
-                   typename V::F out[3]) {
-    using F = typename V::F;
-    constexpr int W = V::W;
-    constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
-    const LocateGrid& g = ctx.grid;
-    const LocateTree& tree = ctx.tree;
-    F t[3];
-    float first[3];
-    for (int k = 0; k < 3; ++k) {
-        t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));  // eval::gridCoordinate
-        alignas(64) float lanes[W];
-        V::store(lanes, t[k]);
-        first[k] = lanes[0];
-    }
-    // The first point's leaf: its start-table cell's node, then down the tree by the planes alone (inside the
-    // open box the bands do not matter).
+// The leaf of lattice point t by the planes alone (the bands do not matter inside a leaf's open box): its
+// start-table cell's node, then down the tree.
+inline uint32_t treeLeafOf(const LocateTree& tree, const float t[3]) {
     size_t at = 0;
     for (int k = 2; k >= 0; --k) {
-        const int c = int(first[k] * tree.startScale[k]);
+        const int c = int(t[k] * tree.startScale[k]);
         at = at * tree.startDims[k] + size_t(c < 0 ? 0 : (c >= int(tree.startDims[k]) ? int(tree.startDims[k]) - 1 : c));
     }
     uint32_t node = tree.starts[at];
     while (tree.nodes[3 * node] != 3u) {  // format::kTreeLeaf
         const uint32_t* nd = tree.nodes + 3 * node;
-        node = first[nd[0]] >= float(nd[1]) ? nd[2] + 1 : nd[2];
+        node = t[nd[0]] >= float(nd[1]) ? nd[2] + 1 : nd[2];
     }
-    const uint32_t leaf = tree.nodes[3 * node + 2];
-    const float* box = tree.leaves + 12 * size_t(leaf);
+    return tree.nodes[3 * node + 2];
+}
+
+// A block of valid points of a kd-tree asset (t: lattice coordinates, also as lanes): when the leaf of the first
+// point holds every point of the block with weight 1 (all of them inside the leaf's open box clear of blending
+// bands; LocateTree), that leaf's network over the whole vector, the position input exactly as
+// eval::treeSupports computes it. Returns false, writing nothing, otherwise (or when the leaf is empty).
+template <class V>
+bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], const typename V::F n[3],
+                   const typename V::F d[3], typename V::F out[3]) {
+    using F = typename V::F;
+    constexpr unsigned all = V::W == 32 ? ~0u : (1u << V::W) - 1u;
+    const float first[3] = {lanes[0][0], lanes[1][0], lanes[2][0]};
+    const uint32_t leaf = treeLeafOf(ctx.tree, first);
+    const float* box = ctx.tree.leaves + 12 * size_t(leaf);
     unsigned inside = all;
     for (int k = 0; k < 3; ++k) inside &= ~V::leMask(t[k], V::set1(box[k])) & ~V::geMask(t[k], V::set1(box[3 + k]));
     if (inside != all) return false;
-    const int32_t network = g.dense[leaf];
+    const int32_t network = ctx.grid.dense[leaf];
     if (network < 0) return false;
     const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
     F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
@@ -399,6 +393,35 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F p[3], const type
     net.scale = ctx.scales[network];
     evalNetwork<V>(net, in, out);
     toRadiance<V>(net, out);
+    return true;
+}
+
+// A block of valid points of a kd-tree asset spread over several leaves: when every point lies inside its own
+// leaf's open box and that leaf has a network, each point joins the grouped pass with weight 1 (flags
+// written), as a grid block spanning several voxels does; the position input is eval::localInBox's, clamped.
+// Returns false, recording nothing, otherwise.
+template <class V>
+bool recordTreeLanes(const BlockContext& ctx, const float lanes[3][V::W], size_t first, Deferred& def) {
+    int32_t networks[V::W];
+    float local[3][V::W];
+    for (int l = 0; l < V::W; ++l) {
+        const float t[3] = {lanes[0][l], lanes[1][l], lanes[2][l]};
+        const uint32_t leaf = treeLeafOf(ctx.tree, t);
+        const float* box = ctx.tree.leaves + 12 * size_t(leaf);
+        for (int k = 0; k < 3; ++k)
+            if (!(t[k] > box[k] && t[k] < box[3 + k])) return false;
+        if ((networks[l] = ctx.grid.dense[leaf]) < 0) return false;
+        for (int k = 0; k < 3; ++k) {
+            const float q = 2.0f * (t[k] - box[6 + k]) / box[9 + k] - 1.0f;
+            local[k][l] = q < -1.0f ? -1.0f : (q > 1.0f ? 1.0f : q);
+        }
+    }
+    for (int l = 0; l < V::W; ++l) {
+        const size_t e = def.count++;
+        def.index[e] = uint32_t(first + size_t(l));
+        def.network[e] = networks[l];
+        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = local[k][l];
+    }
     return true;
 }
 
@@ -457,14 +480,23 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             defer();
             continue;
         }
-        if (ctx.tree.nodes) {  // a kd-tree asset: one leaf for the whole block, or the general path
-            F out[kOutputs];
-            if (!evalTreeBlock<V>(ctx, p, n, d, out)) {
-                defer();
-                continue;
+        if (ctx.tree.nodes) {  // a kd-tree asset: one leaf for the whole block, each point in its own, or in general
+            F t[3], out[kOutputs];
+            alignas(64) float lanes[3][W];
+            for (int k = 0; k < 3; ++k) {
+                t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));  // eval::gridCoordinate
+                V::store(lanes[k], t[k]);
             }
-            ++def.treeBlocks;
-            emit(out);
+            if (evalTreeBlock<V>(ctx, t, lanes, n, d, out)) {
+                ++def.treeBlocks;
+                emit(out);
+            } else if (recordTreeLanes<V>(ctx, lanes, first, def)) {
+                if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the grouped pass reads n and d
+                if (ctx.io.flags)
+                    for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
+            } else {
+                defer();
+            }
             continue;
         }
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
