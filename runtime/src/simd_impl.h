@@ -397,30 +397,41 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const floa
 }
 
 // A block of valid points of a kd-tree asset spread over several leaves: when every point lies inside its own
-// leaf's open box and that leaf has a network, each point joins the grouped pass with weight 1 (flags
-// written), as a grid block spanning several voxels does; the position input is eval::localInBox's, clamped.
-// Returns false, recording nothing, otherwise.
+// leaf's open box and that leaf has a network, each point joins the grouped pass with weight 1, as a grid
+// block spanning several voxels does; the position input is eval::localInBox's, clamped, computed for the
+// whole vector from each lane's box. Returns false, recording nothing, otherwise.
 template <class V>
-bool recordTreeLanes(const BlockContext& ctx, const float lanes[3][V::W], size_t first, Deferred& def) {
-    int32_t networks[V::W];
-    float local[3][V::W];
-    for (int l = 0; l < V::W; ++l) {
-        const float t[3] = {lanes[0][l], lanes[1][l], lanes[2][l]};
-        const uint32_t leaf = treeLeafOf(ctx.tree, t);
-        const float* box = ctx.tree.leaves + 12 * size_t(leaf);
-        for (int k = 0; k < 3; ++k)
-            if (!(t[k] > box[k] && t[k] < box[3 + k])) return false;
+bool recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], size_t first,
+                     Deferred& def) {
+    using F = typename V::F;
+    constexpr int W = V::W;
+    constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
+    int32_t networks[W];
+    alignas(64) float box[4][3][W];  // per lane: open box lo, hi; leaf box lo, size
+    for (int l = 0; l < W; ++l) {
+        const float tl[3] = {lanes[0][l], lanes[1][l], lanes[2][l]};
+        const uint32_t leaf = treeLeafOf(ctx.tree, tl);
         if ((networks[l] = ctx.grid.dense[leaf]) < 0) return false;
-        for (int k = 0; k < 3; ++k) {
-            const float q = 2.0f * (t[k] - box[6 + k]) / box[9 + k] - 1.0f;
-            local[k][l] = q < -1.0f ? -1.0f : (q > 1.0f ? 1.0f : q);
-        }
+        const float* b = ctx.tree.leaves + 12 * size_t(leaf);
+        for (int j = 0; j < 4; ++j)
+            for (int k = 0; k < 3; ++k) box[j][k][l] = b[3 * j + k];
     }
-    for (int l = 0; l < V::W; ++l) {
+    const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
+    unsigned inside = all;
+    F local[3];
+    for (int k = 0; k < 3; ++k) {
+        inside &= ~V::leMask(t[k], V::load(box[0][k])) & ~V::geMask(t[k], V::load(box[1][k]));
+        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::load(box[2][k]))), V::load(box[3][k])), one);
+        local[k] = V::min(V::max(q, V::sub(zero, one)), one);
+    }
+    if (inside != all) return false;
+    alignas(64) float out[3][W];
+    for (int k = 0; k < 3; ++k) V::store(out[k], local[k]);
+    for (int l = 0; l < W; ++l) {
         const size_t e = def.count++;
         def.index[e] = uint32_t(first + size_t(l));
         def.network[e] = networks[l];
-        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = local[k][l];
+        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = out[k][l];
     }
     return true;
 }
@@ -490,7 +501,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             if (evalTreeBlock<V>(ctx, t, lanes, n, d, out)) {
                 ++def.treeBlocks;
                 emit(out);
-            } else if (recordTreeLanes<V>(ctx, lanes, first, def)) {
+            } else if (recordTreeLanes<V>(ctx, t, lanes, first, def)) {
                 if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the grouped pass reads n and d
                 if (ctx.io.flags)
                     for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
