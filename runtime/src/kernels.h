@@ -148,6 +148,8 @@ struct BlockContext {
 struct Deferred {
     uint32_t* blocks;  // blocks with an invalid, outside or empty-voxel point: located one point at a time
     size_t blockCount;
+    uint32_t* points;  // single points left to the general path (kd-tree blocks whose other points were recorded)
+    size_t pointCount;
     uint32_t* index;  // points located in several voxels: point, network and position in the voxel
     int32_t* network;
     float* local;  // 3 per point

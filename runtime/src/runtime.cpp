@@ -283,7 +283,8 @@ constexpr size_t kTileEntries = kTilePoints * eval::kMaxSupports;
 constexpr size_t kSmallBatchEntries = 64;
 
 struct Scratch {
-    uint32_t* blocks;  // kTilePoints
+    uint32_t* blocks;  // kTilePoints each: blocks and single points left to the general path
+    uint32_t* points;
     uint32_t* index;  // kTileEntries each, then
     int32_t* network;
     float* weight;
@@ -295,7 +296,7 @@ struct Scratch {
 };
 
 constexpr size_t kScratchBytes =
-    kTilePoints * 4 + kTileEntries * (4 + 4 + 4 + 4 + 8 + 12) + (kTileEntries + 1) * 4 + 64;  // + alignment
+    kTilePoints * 8 + kTileEntries * (4 + 4 + 4 + 4 + 8 + 12) + (kTileEntries + 1) * 4 + 64;  // + alignment
 
 // A tile's fp32 copy of the G-buffer: what nradShadeGBuffer converts into before evaluating (after the
 // evaluation scratch in the same block).
@@ -318,6 +319,7 @@ Scratch carveScratch(void* memory) {
     Scratch s;
     s.keys = static_cast<uint64_t*>(take(kTileEntries * 8));  // 8-byte aligned first
     s.blocks = static_cast<uint32_t*>(take(kTilePoints * 4));
+    s.points = static_cast<uint32_t*>(take(kTilePoints * 4));
     s.index = static_cast<uint32_t*>(take(kTileEntries * 4));
     s.network = static_cast<int32_t*>(take(kTileEntries * 4));
     s.weight = static_cast<float*>(take(kTileEntries * 4));
@@ -395,7 +397,7 @@ void locateOne(const NradAsset_& a, const rt::BatchIo& v, size_t i, Scratch& s) 
 // At most kTilePoints points.
 void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scratch& s) {
     const size_t nets = a.asset.voxels.size();
-    rt::Deferred def{s.blocks, 0, s.index, s.network, s.local, 0, 0, 0, 0};
+    rt::Deferred def{s.blocks, 0, s.points, 0, s.index, s.network, s.local, 0, 0, 0, 0};
     const NradKernel kind = kernelOf(a);
     const rt::ChunkKernel kernel = kernelFunction(kind);
     const format::Topology& t = a.asset.topology;
@@ -446,6 +448,7 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
     //    tail.
     for (size_t e = 0; e < def.count; ++e) s.weight[e] = 1.0f;
     s.entries = def.count;
+    for (size_t k = 0; k < def.pointCount; ++k) locateOne(a, v, def.points[k], s);
     for (size_t b = 0; b < def.blockCount; ++b)
         for (size_t i = size_t(def.blocks[b]) * size_t(width), end = i + size_t(width); i < end; ++i) locateOne(a, v, i, s);
     for (size_t i = blocks * size_t(width); i < count; ++i) locateOne(a, v, i, s);

@@ -396,13 +396,14 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const floa
     return true;
 }
 
-// A block of valid points of a kd-tree asset spread over several leaves: when every point lies inside its own
-// leaf's open box and that leaf has a network, each point joins the grouped pass with weight 1, as a grid
-// block spanning several voxels does; the position input is eval::localInBox's, clamped, computed for the
-// whole vector from each lane's box. Returns false, recording nothing, otherwise.
+// A block of valid points of a kd-tree asset spread over several leaves (or not all clear of the bands): each
+// point inside its own leaf's open box, in a leaf with a network, joins the grouped pass with weight 1 (its
+// flag written), as a grid block spanning several voxels does, the position input eval::localInBox's, clamped,
+// computed for the whole vector from each lane's box; every other point goes to def.points, for the general
+// path to locate (bands, empty leaves).
 template <class V>
-bool recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], size_t first,
-                     Deferred& def) {
+void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], size_t first,
+                     Deferred& def, uint8_t* flags) {
     using F = typename V::F;
     constexpr int W = V::W;
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
@@ -411,29 +412,31 @@ bool recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], const fl
     for (int l = 0; l < W; ++l) {
         const float tl[3] = {lanes[0][l], lanes[1][l], lanes[2][l]};
         const uint32_t leaf = treeLeafOf(ctx.tree, tl);
-        if ((networks[l] = ctx.grid.dense[leaf]) < 0) return false;
+        networks[l] = ctx.grid.dense[leaf];
         const float* b = ctx.tree.leaves + 12 * size_t(leaf);
         for (int j = 0; j < 4; ++j)
             for (int k = 0; k < 3; ++k) box[j][k][l] = b[3 * j + k];
     }
     const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
     unsigned inside = all;
-    F local[3];
+    alignas(64) float local[3][W];
     for (int k = 0; k < 3; ++k) {
         inside &= ~V::leMask(t[k], V::load(box[0][k])) & ~V::geMask(t[k], V::load(box[1][k]));
         const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::load(box[2][k]))), V::load(box[3][k])), one);
-        local[k] = V::min(V::max(q, V::sub(zero, one)), one);
+        V::store(local[k], V::min(V::max(q, V::sub(zero, one)), one));
     }
-    if (inside != all) return false;
-    alignas(64) float out[3][W];
-    for (int k = 0; k < 3; ++k) V::store(out[k], local[k]);
     for (int l = 0; l < W; ++l) {
+        const uint32_t point = uint32_t(first + size_t(l));
+        if (!((inside >> l) & 1u) || networks[l] < 0) {
+            def.points[def.pointCount++] = point;
+            continue;
+        }
         const size_t e = def.count++;
-        def.index[e] = uint32_t(first + size_t(l));
+        def.index[e] = point;
         def.network[e] = networks[l];
-        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = out[k][l];
+        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = local[k][l];
+        if (flags) flags[point] = 0;
     }
-    return true;
 }
 
 // A G-buffer block's prepared inputs into BatchIo's arrays, for the paths that read them there.
@@ -501,12 +504,9 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             if (evalTreeBlock<V>(ctx, t, lanes, n, d, out)) {
                 ++def.treeBlocks;
                 emit(out);
-            } else if (recordTreeLanes<V>(ctx, t, lanes, first, def)) {
-                if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the grouped pass reads n and d
-                if (ctx.io.flags)
-                    for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;
             } else {
-                defer();
+                if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
+                recordTreeLanes<V>(ctx, t, lanes, first, def, ctx.io.flags);
             }
             continue;
         }
