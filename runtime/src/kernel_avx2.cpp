@@ -38,6 +38,10 @@ struct Avx2 {
     static I addi(I a, I b) { return _mm256_add_epi32(a, b); }
     static I mullo(I a, I b) { return _mm256_mullo_epi32(a, b); }
     static I mini(I a, I b) { return _mm256_min_epi32(a, b); }
+    // Lanes whose bit is set in mask from a, the others from b.
+    static I selecti(unsigned mask, I a, I b) { return _mm256_castps_si256(select(mask, _mm256_castsi256_ps(a), _mm256_castsi256_ps(b))); }
+    static I gatheri(const int32_t* base, I index) { return _mm256_i32gather_epi32(base, index, 4); }
+    static F gatherf(const float* base, I index) { return _mm256_i32gather_ps(base, index, 4); }
     static unsigned geMask(F a, F b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_GE_OQ))); }
     static unsigned leMask(F a, F b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ))); }
     static int32_t firstLane(I a) { return _mm_cvtsi128_si32(_mm256_castsi256_si128(a)); }

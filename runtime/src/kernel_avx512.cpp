@@ -39,6 +39,9 @@ struct Avx512 {
     static I addi(I a, I b) { return _mm512_add_epi32(a, b); }
     static I mullo(I a, I b) { return _mm512_mullo_epi32(a, b); }
     static I mini(I a, I b) { return _mm512_min_epi32(a, b); }
+    static I selecti(unsigned mask, I a, I b) { return _mm512_mask_blend_epi32(__mmask16(mask), b, a); }
+    static I gatheri(const int32_t* base, I index) { return _mm512_i32gather_epi32(index, base, 4); }
+    static F gatherf(const float* base, I index) { return _mm512_i32gather_ps(index, base, 4); }
     static unsigned geMask(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GE_OQ); }
     static unsigned leMask(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
     static int32_t firstLane(I a) { return _mm_cvtsi128_si32(_mm512_castsi512_si128(a)); }

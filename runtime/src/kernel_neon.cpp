@@ -40,6 +40,20 @@ struct Neon {
     static I addi(I a, I b) { return vaddq_s32(a, b); }
     static I mullo(I a, I b) { return vmulq_s32(a, b); }
     static I mini(I a, I b) { return vminq_s32(a, b); }
+    static I selecti(unsigned mask, I a, I b) { return vbslq_s32(vtstq_u32(vdupq_n_u32(mask), bits()), a, b); }
+    static I gatheri(const int32_t* base, I index) {  // no gather instruction: lane by lane
+        int32_t at[4], v[4];
+        vst1q_s32(at, index);
+        for (int l = 0; l < 4; ++l) v[l] = base[at[l]];
+        return vld1q_s32(v);
+    }
+    static F gatherf(const float* base, I index) {
+        int32_t at[4];
+        float v[4];
+        vst1q_s32(at, index);
+        for (int l = 0; l < 4; ++l) v[l] = base[at[l]];
+        return vld1q_f32(v);
+    }
     static unsigned geMask(F a, F b) { return toMask(vcgeq_f32(a, b)); }
     static unsigned leMask(F a, F b) { return toMask(vcleq_f32(a, b)); }
     static int32_t firstLane(I a) { return vgetq_lane_s32(a, 0); }

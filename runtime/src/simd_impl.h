@@ -9,7 +9,8 @@
 //   select(mask, a, b) (lanes of mask from a, the others from b),
 //   min, max (both return the second operand when either is NaN, like the x86 instructions),
 //   roundNearest, timesPow2(q, n) = q 2^n for integral n in [-126, 127], cvtTrunc (F -> I), cvtFloat
-//   (I -> F), addi, mullo, mini, storei, firstLane (lane 0 of an I), geMask/leMask (ordered compares)
+//   (I -> F), addi, mullo, mini, selecti (as select, of I), gatheri / gatherf (base[index] per lane), storei,
+//   firstLane (lane 0 of an I), geMask/leMask (ordered compares)
 //   and equalMask (of two F or two I) -> bit mask of W lanes,
 //   deinterleave3 / interleave3 (x0 y0 z0 x1 ... <-> three vectors), sqrt, loadHalf (W fp16 values -> F)
 //   and storeHalf (F -> W fp16 values, saturated at 65504 as format::floatToHalf does; the input is never NaN);
@@ -398,31 +399,46 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const floa
 
 // A block of valid points of a kd-tree asset spread over several leaves (or not all clear of the bands): each
 // point inside its own leaf's open box, in a leaf with a network, joins the grouped pass with weight 1 (its
-// flag written), as a grid block spanning several voxels does, the position input eval::localInBox's, clamped,
-// computed for the whole vector from each lane's box; every other point goes to def.points, for the general
-// path to locate (bands, empty leaves).
+// flag written), as a grid block spanning several voxels does; every other point goes to def.points, for the
+// general path to locate (bands, empty leaves). Every lane descends at once (treeLeafOf's start table and
+// planes, a gather per word and level), and the boxes and position inputs (eval::localInBox, clamped) are
+// computed for the whole vector.
 template <class V>
-void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], size_t first,
-                     Deferred& def, uint8_t* flags) {
+void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], size_t first, Deferred& def, uint8_t* flags) {
     using F = typename V::F;
+    using I = typename V::I;
     constexpr int W = V::W;
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
-    int32_t networks[W];
-    alignas(64) float box[4][3][W];  // per lane: open box lo, hi; leaf box lo, size
-    for (int l = 0; l < W; ++l) {
-        const float tl[3] = {lanes[0][l], lanes[1][l], lanes[2][l]};
-        const uint32_t leaf = treeLeafOf(ctx.tree, tl);
-        networks[l] = ctx.grid.dense[leaf];
-        const float* b = ctx.tree.leaves + 12 * size_t(leaf);
-        for (int j = 0; j < 4; ++j)
-            for (int k = 0; k < 3; ++k) box[j][k][l] = b[3 * j + k];
+    const LocateTree& tree = ctx.tree;
+    const auto* words = reinterpret_cast<const int32_t*>(tree.nodes);
+    I at = V::seti(0);
+    for (int k = 2; k >= 0; --k) {  // t >= 0 here, so the truncation is >= 0
+        const I c = V::mini(V::cvtTrunc(V::mul(t[k], V::set1(tree.startScale[k]))), V::seti(int(tree.startDims[k]) - 1));
+        at = V::addi(V::mullo(at, V::seti(int(tree.startDims[k]))), c);
     }
+    I node = V::gatheri(reinterpret_cast<const int32_t*>(tree.starts), at);
+    const I three = V::seti(3), one_i = V::seti(1);
+    for (;;) {
+        const I word = V::mullo(node, three);
+        const I axis = V::gatheri(words, word);
+        const unsigned leaf = V::equalMask(axis, three);
+        if (leaf == all) break;
+        const I split = V::gatheri(words + 1, word), child = V::gatheri(words + 2, word);
+        const F along = V::select(V::equalMask(axis, V::seti(0)), t[0], V::select(V::equalMask(axis, one_i), t[1], t[2]));
+        const unsigned upper = V::geMask(along, V::cvtFloat(split));
+        node = V::selecti(leaf, node, V::selecti(upper, V::addi(child, one_i), child));
+    }
+    const I leaves = V::gatheri(words + 2, V::mullo(node, three));
+    alignas(64) int32_t networks[W];
+    V::storei(networks, V::gatheri(ctx.grid.dense, leaves));
+    const I box = V::mullo(leaves, V::seti(12));
     const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
     unsigned inside = all;
     alignas(64) float local[3][W];
     for (int k = 0; k < 3; ++k) {
-        inside &= ~V::leMask(t[k], V::load(box[0][k])) & ~V::geMask(t[k], V::load(box[1][k]));
-        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::load(box[2][k]))), V::load(box[3][k])), one);
+        const float* b = tree.leaves + k;
+        inside &= ~V::leMask(t[k], V::gatherf(b, box)) & ~V::geMask(t[k], V::gatherf(b + 3, box));
+        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::gatherf(b + 6, box))), V::gatherf(b + 9, box)), one);
         V::store(local[k], V::min(V::max(q, V::sub(zero, one)), one));
     }
     for (int l = 0; l < W; ++l) {
@@ -506,7 +522,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 emit(out);
             } else {
                 if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
-                recordTreeLanes<V>(ctx, t, lanes, first, def, ctx.io.flags);
+                recordTreeLanes<V>(ctx, t, first, def, ctx.io.flags);
             }
             continue;
         }
