@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <math.h>  // exp2f: the shading contract's, called lane by lane
 
 #include <nrad/eval_constants.h>
 
@@ -105,6 +106,12 @@ struct GBufferIo {
     bool outHalf;
     int channels;
     uint8_t* done;  // per point, zeroed by the caller
+    // With `out`: the material terms (NradSurface's nine floats, `surfaceStride` bytes apart; null: none) the
+    // driver shades its pixels with, by the asset's content flags (nrad/eval.h shade(), as runtime.cpp's
+    // shadeOne applies it, bit for bit).
+    const uint8_t* surfaces;
+    size_t surfaceStride;
+    uint32_t contentFlags;
 };
 
 // Where a batch's points come from and where their results go: interleaved (stride 3, the x pointers
@@ -166,6 +173,9 @@ uint64_t blendedBlocksSoFar();
 uint64_t gbufferBlocksSoFar();
 // Blocks of kd-tree assets located and evaluated in registers since the process started (the same purpose).
 uint64_t treeBlocksSoFar();
+
+// The shading contract's flags (format::kFlagScatteredRadiance, format::kFlagDemodulated) as the kernels see them.
+constexpr uint32_t kContentScattered = 1u, kContentDemodulated = 2u;
 
 // Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
 // blending band and in one occupied voxel is located and evaluated in vector registers, with its results and

@@ -30,6 +30,9 @@ static_assert(NRAD_CONTENT_SCATTERED_RADIANCE == format::kFlagScatteredRadiance,
 static_assert(NRAD_CONTENT_DEMODULATED == format::kFlagDemodulated, "content flag bits");
 static_assert(NRAD_CONTENT_BLENDED == format::kFlagBlended, "content flag bits");
 static_assert(NRAD_CONTENT_TREE == format::kFlagTree, "content flag bits");
+static_assert(rt::kContentScattered == format::kFlagScatteredRadiance && rt::kContentDemodulated == format::kFlagDemodulated,
+              "content flag bits");
+static_assert(sizeof(NradSurface) == 9 * sizeof(float), "rt::GBufferIo reads surfaces as nine floats");
 
 struct NradAsset_ {
     format::Asset asset;  // decoded; weights already in fp32
@@ -713,7 +716,7 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
     int width = 0;
     const bool fused = blockDriverOf(a, width) != nullptr;
-    const bool fusedOut = fused && !g.surfaces;
+    const bool fusedOut = fused;
     for (size_t first = 0; first < g.count; first += kTilePoints) {
         const size_t n = std::min(kTilePoints, g.count - first);
         // The points the block driver will not read: all of them without one, else the last partial vector.
@@ -746,6 +749,11 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
                 io.channels = int(channels);
                 io.done = t.done;
                 std::memset(t.done, 0, n);
+                if (g.surfaces) {
+                    io.surfaces = reinterpret_cast<const uint8_t*>(g.surfaces) + first * surfaceStride;
+                    io.surfaceStride = surfaceStride;
+                    io.contentFlags = a.asset.header.flags;
+                }
             }
         }
         const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},

@@ -323,6 +323,73 @@ NRAD_ALWAYS_INLINE inline void loadGBuffer(const GBufferIo& g, size_t first, typ
     if (g.normaliseNormals) normalise3<V>(n);
 }
 
+// Lanes of v that are finite (inf x 0 and NaN x 0 are NaN).
+template <class V>
+inline unsigned finiteMask(typename V::F v) {
+    return V::equalMask(V::mul(v, V::zero()), V::zero());
+}
+
+// x clamped to [0, 1] as `x < 0 ? 0 : (x > 1 ? 1 : x)` does, NaN kept.
+template <class V>
+inline typename V::F clampKeepNaN(typename V::F x) {
+    const unsigned number = V::equalMask(x, x);
+    const unsigned below = ~V::geMask(x, V::zero()) & number, above = ~V::leMask(x, V::set1(1.0f)) & number;
+    return V::select(below, V::zero(), V::select(above, V::set1(1.0f), x));
+}
+
+// The final radiance of W points from the asset's (rgb, in place): runtime.cpp's shadeOne and nrad/eval.h's
+// shade() and reflectance() operation for operation (no fused multiply-adds, the same order; exp2f called per
+// lane as std::exp2 calls it; min/max with the x86 NaN rule standing where fmin/fmax or a NaN-discarding
+// comparison stand), so each lane gets the scalar path's bits.
+template <class V>
+inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[3], const typename V::F d[3],
+                        typename V::F rgb[3]) {
+    using F = typename V::F;
+    constexpr int W = V::W;
+    alignas(64) float m[9][W];  // baseColor[3], metallic, roughness, specular, emission[3]
+    const uint8_t* s = g.surfaces + first * g.surfaceStride;
+    for (int l = 0; l < W; ++l, s += g.surfaceStride) {
+        float terms[9];
+        std::memcpy(terms, s, sizeof terms);
+        for (int j = 0; j < 9; ++j) m[j][l] = terms[j];
+    }
+    const F zero = V::zero(), one = V::set1(1.0f);
+    F r[3] = {one, one, one};
+    if (g.contentFlags & kContentDemodulated) {
+        F cosNV = V::add(V::add(V::mul(n[0], d[0]), V::mul(n[1], d[1])), V::mul(n[2], d[2]));
+        cosNV = V::select(finiteMask<V>(cosNV), cosNV, zero);
+        const F rough = clampKeepNaN<V>(V::load(m[4])), metal = clampKeepNaN<V>(V::load(m[3])), spec = V::load(m[5]);
+        const F nv = V::min(V::max(cosNV, zero), one);
+        const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
+        F rr[4];
+        for (int i = 0; i < 4; ++i) rr[i] = V::add(V::mul(rough, V::set1(c0[i])), V::set1(c1[i]));
+        alignas(64) float x[W];
+        V::store(x, V::mul(V::set1(-9.28f), nv));
+        for (int l = 0; l < W; ++l) x[l] = exp2f(x[l]);
+        const F a004 = V::add(V::mul(V::min(V::mul(rr[0], rr[0]), V::load(x)), rr[0]), rr[1]);
+        const F A = V::max(V::add(V::mul(V::set1(-1.04f), a004), rr[2]), zero);
+        const F B = V::max(V::add(V::mul(V::set1(1.04f), a004), rr[3]), zero);
+        const F oneMinusM = V::sub(one, metal);
+        const F w = V::add(V::mul(spec, oneMinusM), metal);
+        const F f0Spec = V::mul(V::mul(V::set1(0.04f), spec), oneMinusM);
+        for (int c = 0; c < 3; ++c) {
+            const F base = V::min(V::max(V::load(m[c]), zero), one);
+            const F f0 = V::add(f0Spec, V::mul(base, metal));
+            const F out = V::add(V::add(V::mul(base, oneMinusM), V::mul(f0, A)), V::mul(w, B));
+            r[c] = V::max(out, zero);
+        }
+    }
+    for (int c = 0; c < 3; ++c) {
+        F e = zero;
+        if (g.contentFlags & kContentScattered) {
+            e = V::load(m[6 + c]);
+            e = V::select(finiteMask<V>(e), e, zero);
+        }
+        const F out = V::add(V::mul(r[c], rgb[c]), e);
+        rgb[c] = V::select(finiteMask<V>(out), out, zero);
+    }
+}
+
 // W pixels of radiance into the G-buffer's output.
 template <class V>
 inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rgb[3]) {
@@ -490,13 +557,15 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             def.blocks[def.blockCount++] = uint32_t(b);
         };
         // This block's results: into the G-buffer's pixels or BatchIo::out.
-        auto emit = [&](const F rgb[3]) {
+        auto emit = [&](const F result[3]) {
             if (gb && gb->out) {
+                F rgb[3] = {result[0], result[1], result[2]};
+                if (gb->surfaces) shadePixels<V>(*gb, first, n, d, rgb);
                 storePixels<V>(*gb, first, rgb);
                 for (int l = 0; l < W; ++l) gb->done[first + size_t(l)] = 1;
                 ++def.gbufferBlocks;
             } else {
-                store3<V, Stride>(ctx.io.out, first, rgb);
+                store3<V, Stride>(ctx.io.out, first, result);
             }
             if (ctx.io.flags)
                 for (int l = 0; l < W; ++l) ctx.io.flags[first + size_t(l)] = 0;

@@ -193,6 +193,7 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
     format::Asset grid =
         test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 9,
                           glm::uvec3(4, 3, 3), 0.125f);
+    grid.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;  // the whole shading contract
     format::Asset tree = grid;
     for (int k = 0; k < 3; ++k) tree.grid.dims[k] = 8;
     tree.header.flags |= format::kFlagTree;
@@ -232,10 +233,19 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                 if (i % 97 == 5) n[3 * i] = n[3 * i + 1] = n[3 * i + 2] = 0.0f;  // invalid
                 if (i % 89 == 7) p[3 * i + 1] = source.grid.upper[1] + 0.5f;     // outside
                 surfaces[i] = {{u(rng), u(rng), u(rng)},
-                               u(rng) < 0.3f ? 1.0f : 0.0f,
+                               u(rng) < 0.3f ? 1.0f : u(rng) < 0.5f ? 0.0f : u(rng),
                                u(rng),
-                               1.0f,
-                               {u(rng), 0.0f, u(rng)}};
+                               u(rng) < 0.5f ? 1.0f : 1.5f * u(rng),
+                               {u(rng), 0.0f, 4.0f * u(rng)}};
+                // Material terms out of range or not finite now and then: the shading contract's clamps and NaN
+                // rules in every lane position.
+                const float odd[] = {-0.5f, 1.5f, std::numeric_limits<float>::quiet_NaN(),
+                                     std::numeric_limits<float>::infinity(), -0.0f};
+                if (i % 13 == 3) surfaces[i].roughness = odd[(i / 13) % 5];
+                if (i % 17 == 4) surfaces[i].metallic = odd[(i / 17) % 5];
+                if (i % 19 == 6) surfaces[i].baseColor[(i / 19) % 3] = odd[(i / 19) % 5];
+                if (i % 23 == 8) surfaces[i].emission[(i / 23) % 3] = odd[(i / 23) % 5];
+                if (i % 29 == 9) surfaces[i].specular = odd[(i / 29) % 5];
             }
             const float eye[3] = {0.25f, 7.0f, -3.0f};
             struct Input {
