@@ -322,7 +322,21 @@ uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance)
     return NRAD_POINT_OK;
 }
 
-// ----- shading (eval.h: reflectance, shade) ---------------------------------------------------------------------
+// ----- shading (eval.h: exp2Poly, reflectance, shade) ---------------------------------------------------------------
+
+float nradExp2(float x) {
+    float xc = !(x > -125.0) ? -125.0 : (x > 125.0 ? 125.0 : x);
+    float n = float(int(xc + (xc >= 0.0 ? 0.5 : -0.5)));
+    float r = (xc - n) * 0.693147181;
+    float q = 0.00138889090;
+    q = q * r + 0.00833336264;
+    q = q * r + 0.0416666567;
+    q = q * r + 0.166666672;
+    q = q * r + 0.5;
+    q = q * r + 1.0;
+    q = q * r + 1.0;
+    return q * uintBitsToFloat(uint(int(n) + 127) << 23u);
+}
 
 vec3 nradReflectance(NradSurface s, float cosNV) {
     const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022), c1 = vec4(1.0, 0.0425, 1.04, -0.04);
@@ -330,7 +344,7 @@ vec3 nradReflectance(NradSurface s, float cosNV) {
     float m = s.metallic < 0.0 ? 0.0 : (s.metallic > 1.0 ? 1.0 : s.metallic);
     float nv = cosNV > 0.0 ? (cosNV < 1.0 ? cosNV : 1.0) : 0.0;
     vec4 r = rough * c0 + c1;
-    float a004 = min(r.x * r.x, exp2(-9.28 * nv)) * r.x + r.y;
+    float a004 = min(r.x * r.x, nradExp2(-9.28 * nv)) * r.x + r.y;
     float A = max(0.0, -1.04 * a004 + r.z), B = max(0.0, 1.04 * a004 + r.w);
     float w = s.specular * (1.0 - m) + m;
     vec3 out_;

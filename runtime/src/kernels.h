@@ -5,7 +5,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
-#include <math.h>  // exp2f: the shading contract's, called lane by lane
 
 #include <nrad/eval_constants.h>
 
@@ -35,6 +34,7 @@ struct NetworkView {
 // exp(x) - 1 as nrad/eval.h defines it (eval::expMinusOne): x clamped to [kExpLo, kExpHi], range reduction
 // and a degree-6 polynomial; the same constants in every kernel.
 constexpr float kExpHi = eval::kMaxLog, kExpLo = eval::kMinLog, kLog2e = eval::kLog2e, kLn2Hi = eval::kLn2Hi, kLn2Lo = eval::kLn2Lo;
+constexpr float kLn2 = eval::kLn2, kMaxExp2 = eval::kMaxExp2;
 constexpr const float* kExpP = eval::kExpP;
 
 // x: kInputs rows of kChunk floats; y: kOutputs rows of kChunk floats: the radiance (scale and output

@@ -323,6 +323,19 @@ NRAD_ALWAYS_INLINE inline void loadGBuffer(const GBufferIo& g, size_t first, typ
     if (g.normaliseNormals) normalise3<V>(n);
 }
 
+// eval::exp2Poly, operation for operation (no fused multiply-adds): the same bits in every lane.
+template <class V>
+inline typename V::F exp2Poly(typename V::F x) {
+    using F = typename V::F;
+    const F xc = V::min(V::max(x, V::set1(-kMaxExp2)), V::set1(kMaxExp2));  // NaN: max gives -kMaxExp2
+    const F half = V::select(V::geMask(xc, V::zero()), V::set1(0.5f), V::set1(-0.5f));
+    const F n = V::cvtFloat(V::cvtTrunc(V::add(xc, half)));
+    const F r = V::mul(V::sub(xc, n), V::set1(kLn2));
+    F q = V::set1(kExpP[6]);
+    for (int k = 5; k >= 0; --k) q = V::add(V::mul(q, r), V::set1(kExpP[k]));
+    return V::timesPow2(q, n);
+}
+
 // Lanes of v that are finite (inf x 0 and NaN x 0 are NaN).
 template <class V>
 inline unsigned finiteMask(typename V::F v) {
@@ -338,9 +351,9 @@ inline typename V::F clampKeepNaN(typename V::F x) {
 }
 
 // The final radiance of W points from the asset's (rgb, in place): runtime.cpp's shadeOne and nrad/eval.h's
-// shade() and reflectance() operation for operation (no fused multiply-adds, the same order; exp2f called per
-// lane as std::exp2 calls it; min/max with the x86 NaN rule standing where fmin/fmax or a NaN-discarding
-// comparison stand), so each lane gets the scalar path's bits.
+// shade() and reflectance() operation for operation (no fused multiply-adds, the same order, exp2Poly; min/max
+// with the x86 NaN rule standing where fmin/fmax or a NaN-discarding comparison stand), so each lane gets the
+// scalar path's bits.
 template <class V>
 inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[3], const typename V::F d[3],
                         typename V::F rgb[3]) {
@@ -363,10 +376,7 @@ inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[
         const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
         F rr[4];
         for (int i = 0; i < 4; ++i) rr[i] = V::add(V::mul(rough, V::set1(c0[i])), V::set1(c1[i]));
-        alignas(64) float x[W];
-        V::store(x, V::mul(V::set1(-9.28f), nv));
-        for (int l = 0; l < W; ++l) x[l] = exp2f(x[l]);
-        const F a004 = V::add(V::mul(V::min(V::mul(rr[0], rr[0]), V::load(x)), rr[0]), rr[1]);
+        const F a004 = V::add(V::mul(V::min(V::mul(rr[0], rr[0]), exp2Poly<V>(V::mul(V::set1(-9.28f), nv))), rr[0]), rr[1]);
         const F A = V::max(V::add(V::mul(V::set1(-1.04f), a004), rr[2]), zero);
         const F B = V::max(V::add(V::mul(V::set1(1.04f), a004), rr[3]), zero);
         const F oneMinusM = V::sub(one, metal);

@@ -484,6 +484,23 @@ inline float expMinusOne(float v) {
     return q * pow2 - 1.0f;
 }
 
+// 2^x for the shading contract (the reflectance fit's exp2(-9.28 n.wo)), defined here instead of taken from
+// the C library so that every kernel, vector or not, and the GPU compute the same value (the library's exp2f
+// differs between its own CPU variants): x clamped to [-kMaxExp2, kMaxExp2] (NaN to the lower end), x = n + f
+// with n rounded half away from zero, 2^f = exp(f ln2) by kExpP's polynomial, times 2^n from its exponent bits.
+// Relative error below 3e-7.
+inline float exp2Poly(float x) {
+    const float xc = !(x > -kMaxExp2) ? -kMaxExp2 : (x > kMaxExp2 ? kMaxExp2 : x);
+    const float n = float(int(xc + (xc >= 0.0f ? 0.5f : -0.5f)));
+    const float r = (xc - n) * kLn2;
+    float q = kExpP[6];
+    for (int k = 5; k >= 0; --k) q = q * r + kExpP[k];
+    int bits = (int(n) + 127) << 23;
+    float pow2;
+    std::memcpy(&pow2, &bits, 4);
+    return q * pow2;
+}
+
 // Radiance from one output value: transform, the voxel's scale, clamped to [0, kMaxRadiance] (NaN becomes 0).
 inline float decodeOutput(format::OutputTransform transform, float scale, float y) {
     float v = transform == format::OutputTransform::Exponential ? expMinusOne(y) : y;
@@ -521,7 +538,7 @@ inline void reflectance(const Surface& s, float cosNV, float out[3]) {
     const float nv = cosNV > 0.0f ? (cosNV < 1.0f ? cosNV : 1.0f) : 0.0f;
     float r[4];
     for (int i = 0; i < 4; ++i) r[i] = rough * c0[i] + c1[i];
-    const float a004 = std::fmin(r[0] * r[0], std::exp2(-9.28f * nv)) * r[0] + r[1];
+    const float a004 = std::fmin(r[0] * r[0], exp2Poly(-9.28f * nv)) * r[0] + r[1];
     const float A = std::fmax(0.0f, -1.04f * a004 + r[2]), B = std::fmax(0.0f, 1.04f * a004 + r[3]);
     const float w = s.specular * (1.0f - m) + m;
     for (int c = 0; c < 3; ++c) {

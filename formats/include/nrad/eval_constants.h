@@ -18,5 +18,8 @@ constexpr float kLog2e = 1.44269504f, kLn2Hi = 0.693359375f, kLn2Lo = -2.1219444
 // (docs/format.md, "Output transform"). Far above any radiance a scene holds, in any units.
 constexpr float kMaxRadiance = 1e30f;
 constexpr float kExpP[7] = {1.0f, 1.0f, 0.5f, 0.166666672f, 0.0416666567f, 0.00833336264f, 0.00138889090f};
+// 2^x (exp2Poly, the reflectance fit's) by x = n + f, 2^f = exp(f ln2) on the polynomial above: x clamped to
+// [-kMaxExp2, kMaxExp2], where 2^x stays a normal float.
+constexpr float kLn2 = 0.693147181f, kMaxExp2 = 125.0f;
 
 }  // namespace nrad::eval
