@@ -741,7 +741,15 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
             for (int k = 0; k < 3; ++k) io.eyePosition[k] = g.eye[k];
             io.normaliseNormals = !unit;
             io.normaliseDirections = eye || !unit;
-            io.safePoints = first + n == g.count ? n - 1 : n;  // the G-buffer's last point: exact reads
+            // Points whose wide reads (4 bytes past an fp32 point, 2 past an fp16 one) stay inside the attributes:
+            // all but the G-buffer's last (its last few with strides under 4 bytes: overlapping attributes).
+            auto unsafeTail = [](const rt::StridedAttribute& at) {
+                const size_t extra = at.half ? 2 : 4;
+                return (extra + at.stride - 1) / at.stride;
+            };
+            const size_t tail = std::max({unsafeTail(io.p), unsafeTail(io.n), eye ? size_t(0) : unsafeTail(io.d)});
+            const size_t safeEnd = g.count > tail ? g.count - tail : 0;
+            io.safePoints = safeEnd > first ? std::min(n, safeEnd - first) : 0;
             if (fusedOut) {
                 io.out = static_cast<uint8_t*>(g.output) + first * outStride;
                 io.outStride = outStride;

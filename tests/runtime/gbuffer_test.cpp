@@ -257,6 +257,7 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                 {12, 6, 6, false, true, true},    // tightly packed
                 {6, 12, 16, true, false, false},  // fp16 positions, fp32 vectors
                 {13, 7, 9, false, true, true},    // odd strides
+                {4, 2, 6, false, true, true},     // overlapping attributes (strides under their size)
             };
             struct Output {
                 bool half;
