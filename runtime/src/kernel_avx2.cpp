@@ -86,6 +86,33 @@ struct Avx2 {
         v[1] = _mm256_cvtph_ps(_mm_unpackhi_epi64(b0, b2));
         v[2] = _mm256_cvtph_ps(_mm_unpacklo_epi64(b1, b3));
     }
+    // Eight NradSurfaces' nine floats: the first eight of each (32 bytes, inside the surface) as rows of an 8 x 8
+    // transpose, the ninth copied.
+    static constexpr bool kSurfaceLoads = true;
+    static void loadSurfaces(const uint8_t* s, size_t stride, F m[9]) {
+        F r[8];
+        alignas(32) float ninth[8];
+        for (int l = 0; l < 8; ++l) {
+            r[l] = _mm256_loadu_ps(reinterpret_cast<const float*>(s + size_t(l) * stride));
+            std::memcpy(&ninth[l], s + size_t(l) * stride + 32, 4);
+        }
+        F t[8], u[8];
+        for (int k = 0; k < 4; ++k) {
+            t[2 * k] = _mm256_unpacklo_ps(r[2 * k], r[2 * k + 1]);
+            t[2 * k + 1] = _mm256_unpackhi_ps(r[2 * k], r[2 * k + 1]);
+        }
+        for (int k = 0; k < 2; ++k) {
+            u[4 * k] = _mm256_shuffle_ps(t[4 * k], t[4 * k + 2], 0x44);
+            u[4 * k + 1] = _mm256_shuffle_ps(t[4 * k], t[4 * k + 2], 0xEE);
+            u[4 * k + 2] = _mm256_shuffle_ps(t[4 * k + 1], t[4 * k + 3], 0x44);
+            u[4 * k + 3] = _mm256_shuffle_ps(t[4 * k + 1], t[4 * k + 3], 0xEE);
+        }
+        for (int k = 0; k < 4; ++k) {
+            m[k] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x20);
+            m[k + 4] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x31);
+        }
+        m[8] = _mm256_load_ps(ninth);
+    }
     // Eight RGBA fp16 pixels: the inverse transpose, then whole 8-byte pixels.
     static constexpr bool kHalfRgbaStore = true;
     static void storeHalfRgba(uint8_t* o, size_t stride, const F rgb[3]) {

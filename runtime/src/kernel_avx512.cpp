@@ -58,6 +58,7 @@ struct Avx512 {
     }
     static constexpr bool kStridedLoads = false;  // G-buffers through simd_impl.h's exact per-point reads
     static constexpr bool kHalfRgbaStore = false;
+    static constexpr bool kSurfaceLoads = false;
 };
 
 }  // namespace

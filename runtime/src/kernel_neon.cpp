@@ -91,6 +91,7 @@ struct Neon {
     }
     static constexpr bool kStridedLoads = false;  // G-buffers through simd_impl.h's exact per-point reads
     static constexpr bool kHalfRgbaStore = false;
+    static constexpr bool kSurfaceLoads = false;
 };
 
 #include "simd_impl.h"

@@ -16,7 +16,8 @@
 //   and storeHalf (F -> W fp16 values, saturated at 65504 as format::floatToHalf does; the input is never NaN);
 //   kStridedLoads: whether it has loadStrided3 (three fp32 components of W points `stride` bytes apart, 16
 //   bytes read per point) and loadStrided3Half (three fp16 components, 8 bytes read per point);
-//   kHalfRgbaStore: whether it has storeHalfRgba (three F as W fp16 RGBA pixels of alpha 1, `stride` bytes apart).
+//   kHalfRgbaStore: whether it has storeHalfRgba (three F as W fp16 RGBA pixels of alpha 1, `stride` bytes apart);
+//   kSurfaceLoads: whether it has loadSurfaces (W NradSurfaces' nine floats, `stride` bytes apart, as nine F).
 
 // exp(x) - 1 in the polynomial of kernels.h (input clamped to [kExpLo, kExpHi]).
 template <class V>
@@ -359,19 +360,25 @@ inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[
                         typename V::F rgb[3]) {
     using F = typename V::F;
     constexpr int W = V::W;
-    alignas(64) float m[9][W];  // baseColor[3], metallic, roughness, specular, emission[3]
+    F m[9];  // baseColor[3], metallic, roughness, specular, emission[3]
     const uint8_t* s = g.surfaces + first * g.surfaceStride;
-    for (int l = 0; l < W; ++l, s += g.surfaceStride) {
-        float terms[9];
-        std::memcpy(terms, s, sizeof terms);
-        for (int j = 0; j < 9; ++j) m[j][l] = terms[j];
+    if constexpr (V::kSurfaceLoads) {
+        V::loadSurfaces(s, g.surfaceStride, m);
+    } else {
+        alignas(64) float rows[9][W];
+        for (int l = 0; l < W; ++l, s += g.surfaceStride) {
+            float terms[9];
+            std::memcpy(terms, s, sizeof terms);
+            for (int j = 0; j < 9; ++j) rows[j][l] = terms[j];
+        }
+        for (int j = 0; j < 9; ++j) m[j] = V::load(rows[j]);
     }
     const F zero = V::zero(), one = V::set1(1.0f);
     F r[3] = {one, one, one};
     if (g.contentFlags & kContentDemodulated) {
         F cosNV = V::add(V::add(V::mul(n[0], d[0]), V::mul(n[1], d[1])), V::mul(n[2], d[2]));
         cosNV = V::select(finiteMask<V>(cosNV), cosNV, zero);
-        const F rough = clampKeepNaN<V>(V::load(m[4])), metal = clampKeepNaN<V>(V::load(m[3])), spec = V::load(m[5]);
+        const F rough = clampKeepNaN<V>(m[4]), metal = clampKeepNaN<V>(m[3]), spec = m[5];
         const F nv = V::min(V::max(cosNV, zero), one);
         const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
         F rr[4];
@@ -383,7 +390,7 @@ inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[
         const F w = V::add(V::mul(spec, oneMinusM), metal);
         const F f0Spec = V::mul(V::mul(V::set1(0.04f), spec), oneMinusM);
         for (int c = 0; c < 3; ++c) {
-            const F base = V::min(V::max(V::load(m[c]), zero), one);
+            const F base = V::min(V::max(m[c], zero), one);
             const F f0 = V::add(f0Spec, V::mul(base, metal));
             const F out = V::add(V::add(V::mul(base, oneMinusM), V::mul(f0, A)), V::mul(w, B));
             r[c] = V::max(out, zero);
@@ -392,7 +399,7 @@ inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[
     for (int c = 0; c < 3; ++c) {
         F e = zero;
         if (g.contentFlags & kContentScattered) {
-            e = V::load(m[6 + c]);
+            e = m[6 + c];
             e = V::select(finiteMask<V>(e), e, zero);
         }
         const F out = V::add(V::mul(r[c], rgb[c]), e);

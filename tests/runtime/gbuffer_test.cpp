@@ -248,6 +248,10 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                 if (i % 29 == 9) surfaces[i].specular = odd[(i / 29) % 5];
             }
             const float eye[3] = {0.25f, 7.0f, -3.0f};
+            constexpr size_t kPaddedSurface = sizeof(NradSurface) + 7;
+            std::vector<uint8_t> paddedSurfaces(count * kPaddedSurface, 0xC3);
+            for (size_t i = 0; i < count; ++i)
+                std::memcpy(&paddedSurfaces[i * kPaddedSurface], &surfaces[i], sizeof(NradSurface));
             struct Input {
                 size_t positionStride, normalStride, directionStride;
                 bool positionHalf, normalHalf, directionHalf;
@@ -317,6 +321,10 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                             if (!eyeMode) g.direction = direction.describe();
                             for (int k = 0; k < 3; ++k) g.eye[k] = eye[k];
                             g.surfaces = shade ? surfaces.data() : nullptr;
+                            if (shade && !out.half) {  // material terms inside a larger record, an odd stride
+                                g.surfaces = reinterpret_cast<const NradSurface*>(paddedSurfaces.data());
+                                g.surfaceStride = kPaddedSurface;
+                            }
                             g.pointFlags = flags.data();
                             g.output = pixels.data();
                             g.outputStride = out.stride;
