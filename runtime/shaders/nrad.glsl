@@ -213,11 +213,8 @@ float nradWeight(uint index) {
     return (index & 1u) != 0u ? pair.y : pair.x;
 }
 
-float nradExpMinusOne(float v) {
-    if ((floatBitsToUint(v) & 0x7FFFFFFFu) > 0x7F800000u) return v;  // NaN stays NaN (the caller maps it to 0)
-    float xe = v < -87.0 ? -87.0 : (v > 80.0 ? 80.0 : v);
-    float n = float(int(xe * 1.44269504 + (xe >= 0.0 ? 0.5 : -0.5)));
-    float r = (xe - n * 0.693359375) - n * -2.12194440e-4;
+// exp(r) for |r| <= ln2 / 2 (eval_constants.h kExpP), times 2^n from its exponent bits.
+float nradExpPolynomial(float r, float n) {
     float q = 0.00138889090;
     q = q * r + 0.00833336264;
     q = q * r + 0.0416666567;
@@ -225,7 +222,15 @@ float nradExpMinusOne(float v) {
     q = q * r + 0.5;
     q = q * r + 1.0;
     q = q * r + 1.0;
-    return q * uintBitsToFloat(uint(int(n) + 127) << 23u) - 1.0;
+    return q * uintBitsToFloat(uint(int(n) + 127) << 23u);
+}
+
+float nradExpMinusOne(float v) {
+    if ((floatBitsToUint(v) & 0x7FFFFFFFu) > 0x7F800000u) return v;  // NaN stays NaN (the caller maps it to 0)
+    float xe = v < -87.0 ? -87.0 : (v > 80.0 ? 80.0 : v);
+    float n = float(int(xe * 1.44269504 + (xe >= 0.0 ? 0.5 : -0.5)));
+    float r = (xe - n * 0.693359375) - n * -2.12194440e-4;
+    return nradExpPolynomial(r, n) - 1.0;
 }
 
 // The default 9-9-3 network with every loop bound a constant, so that compilers unroll it and keep the
@@ -327,15 +332,7 @@ uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance)
 float nradExp2(float x) {
     float xc = !(x > -125.0) ? -125.0 : (x > 125.0 ? 125.0 : x);
     float n = float(int(xc + (xc >= 0.0 ? 0.5 : -0.5)));
-    float r = (xc - n) * 0.693147181;
-    float q = 0.00138889090;
-    q = q * r + 0.00833336264;
-    q = q * r + 0.0416666567;
-    q = q * r + 0.166666672;
-    q = q * r + 0.5;
-    q = q * r + 1.0;
-    q = q * r + 1.0;
-    return q * uintBitsToFloat(uint(int(n) + 127) << 23u);
+    return nradExpPolynomial((xc - n) * 0.693147181, n);
 }
 
 vec3 nradReflectance(NradSurface s, float cosNV) {

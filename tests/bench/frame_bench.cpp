@@ -17,6 +17,8 @@
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 
+#include "gbuffer_frame.h"
+
 int main(int argc, char** argv) {
     int repeat = 3;
     for (int i = 1; i + 1 < argc; ++i)
@@ -37,10 +39,7 @@ int main(int argc, char** argv) {
     NradAsset asset = nullptr;
     if (nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0) != NRAD_OK) return 1;
 
-    struct Texel {
-        float position[3];
-        uint16_t normal[4], direction[4];
-    };
+    using nrad::bench::Texel;
     const size_t w = 1920, h = 1080, frame = w * h;
     std::vector<Texel> texels(frame);
     for (size_t i = 0; i < frame; ++i) {
@@ -68,18 +67,8 @@ int main(int argc, char** argv) {
         double best = 1e30;
         for (int r = 0; r < repeat; ++r) {
             const auto t0 = std::chrono::steady_clock::now();
-            for (size_t first = 0; first < frame; first += 4096) {
-                NradGBuffer g;
-                std::memset(&g, 0, sizeof g);
-                g.structSize = sizeof g;
-                g.flags = NRAD_GBUFFER_UNIT_VECTORS;
-                g.count = std::min<size_t>(4096, frame - first);
-                g.position = {texels[first].position, sizeof(Texel), NRAD_FORMAT_F32};
-                g.normal = {texels[first].normal, sizeof(Texel), NRAD_FORMAT_F16};
-                g.direction = {texels[first].direction, sizeof(Texel), NRAD_FORMAT_F16};
-                g.output = &rgba[4 * first];
-                g.outputFormat = NRAD_FORMAT_F16;
-                g.outputChannels = 4;
+            for (size_t first = 0; first < frame; first += nrad::bench::kTilePixels) {
+                const NradGBuffer g = nrad::bench::describeTile(texels, first, rgba.data());
                 if (nradShadeGBuffer(asset, &g, scratch.data(), scratch.size()) != NRAD_OK) return 1;
             }
             best = std::min(best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());

@@ -28,6 +28,7 @@
 #include <nrad/nrad.h>
 
 #include "fma_peak.h"
+#include "gbuffer_frame.h"
 #include "../support/test_trees.h"
 
 namespace {
@@ -200,10 +201,7 @@ int main(int argc, char** argv) {
     // nradShadeGBuffer (evaluate only) into RGBA fp16, each call with its own scratch; against nradEvaluateBatch
     // on the same points in fp32, interleaved, in the same tiles.
     {
-        struct Texel {
-            float position[3];
-            uint16_t normal[4], direction[4];
-        };
+        using nrad::bench::Texel;
         const size_t w = 1920, h = 1080, frame = w * h;
         Points pts = makePoints(frame, true, a.grid, 7);
         std::vector<Texel> texels(frame);
@@ -221,19 +219,8 @@ int main(int argc, char** argv) {
         double gbufferBest = 0.0, batchBest = 0.0;
         for (int r = 0; r < repeat; ++r) {
             auto t0 = clock_type::now();
-            for (size_t first = 0; first < frame; first += 4096) {
-                const size_t n = std::min<size_t>(4096, frame - first);
-                NradGBuffer g;
-                std::memset(&g, 0, sizeof g);
-                g.structSize = sizeof g;
-                g.flags = NRAD_GBUFFER_UNIT_VECTORS;
-                g.count = n;
-                g.position = {texels[first].position, sizeof(Texel), NRAD_FORMAT_F32};
-                g.normal = {texels[first].normal, sizeof(Texel), NRAD_FORMAT_F16};
-                g.direction = {texels[first].direction, sizeof(Texel), NRAD_FORMAT_F16};
-                g.output = &rgba[4 * first];
-                g.outputFormat = NRAD_FORMAT_F16;
-                g.outputChannels = 4;
+            for (size_t first = 0; first < frame; first += nrad::bench::kTilePixels) {
+                const NradGBuffer g = nrad::bench::describeTile(texels, first, rgba.data());
                 nradShadeGBuffer(asset, &g, scratch.data(), scratch.size());
             }
             auto t1 = clock_type::now();
@@ -264,19 +251,8 @@ int main(int argc, char** argv) {
         double shadedBest = 0.0;
         for (int r = 0; r < repeat; ++r) {
             auto t0 = clock_type::now();
-            for (size_t first = 0; first < frame; first += 4096) {
-                NradGBuffer g;
-                std::memset(&g, 0, sizeof g);
-                g.structSize = sizeof g;
-                g.flags = NRAD_GBUFFER_UNIT_VECTORS;
-                g.count = std::min<size_t>(4096, frame - first);
-                g.position = {texels[first].position, sizeof(Texel), NRAD_FORMAT_F32};
-                g.normal = {texels[first].normal, sizeof(Texel), NRAD_FORMAT_F16};
-                g.direction = {texels[first].direction, sizeof(Texel), NRAD_FORMAT_F16};
-                g.surfaces = &surfaces[first];
-                g.output = &rgba[4 * first];
-                g.outputFormat = NRAD_FORMAT_F16;
-                g.outputChannels = 4;
+            for (size_t first = 0; first < frame; first += nrad::bench::kTilePixels) {
+                const NradGBuffer g = nrad::bench::describeTile(texels, first, rgba.data(), surfaces.data());
                 nradShadeGBuffer(shaded, &g, scratch.data(), scratch.size());
             }
             shadedBest = std::max(shadedBest, double(frame) / seconds(t0, clock_type::now()));

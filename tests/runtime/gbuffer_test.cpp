@@ -195,18 +195,7 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                           glm::uvec3(4, 3, 3), 0.125f);
     grid.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;  // the whole shading contract
     format::Asset tree = grid;
-    for (int k = 0; k < 3; ++k) tree.grid.dims[k] = 8;
-    tree.header.flags |= format::kFlagTree;
-    tree.tree = test::randomTree(tree.grid.dims, 12, 3);
-    uint32_t leaves = 0;
-    ASSERT_TRUE(format::validateTree(tree.grid.dims, tree.tree, leaves));
-    tree.voxels.clear();
-    for (uint32_t v = 0; v < leaves; ++v)
-        if (v != 5) tree.voxels.push_back({v, 0.75f});
-    tree.weights.resize(tree.voxels.size() * tree.topology.parameterCount());
-    for (size_t i = 0; i < tree.weights.size(); ++i)
-        tree.weights[i] =
-            format::halfToFloat(format::floatToHalf(0.001f * float(int(i * 7919 % 1001) - 500)));
+    ASSERT_FALSE(test::makeRandomTreeAsset(tree, 8, 12, 3, 7, 5).empty());
     for (const format::Asset* sourceAsset : {&grid, &tree}) {
         const format::Asset& source = *sourceAsset;
         nrad::Asset asset;

@@ -166,17 +166,7 @@ TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
         }
         // A random tree over a finer lattice of the same box.
         format::Asset adaptive = grid;
-        for (int k = 0; k < 3; ++k) adaptive.grid.dims[k] = 16;
-        adaptive.header.flags |= format::kFlagTree;
-        adaptive.tree = test::randomTree(adaptive.grid.dims, 90, 8);
-        uint32_t leaves = 0;
-        ASSERT_TRUE(format::validateTree(adaptive.grid.dims, adaptive.tree, leaves));
-        adaptive.voxels.clear();
-        for (uint32_t v = 0; v < leaves; ++v)
-            if (v % 3 != 1) adaptive.voxels.push_back({v, 0.5f + 0.01f * float(v)});
-        std::mt19937 rng(3);
-        adaptive.weights.resize(adaptive.voxels.size() * adaptive.topology.parameterCount());
-        for (float& w : adaptive.weights) w = format::halfToFloat(format::floatToHalf(float(int(rng() % 1201) - 600) / 1000.0f));
+        ASSERT_FALSE(test::makeRandomTreeAsset(adaptive, 16, 90, 8, 3, 1).empty());
         const std::vector<uint8_t> ab = format::encode(adaptive);
         nrad::Asset aa;
         ASSERT_EQ(aa.loadFromMemory(ab.data(), ab.size()), NRAD_OK);
@@ -254,18 +244,10 @@ TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
         uniform.header.flags |= format::kFlagTree;
         uniform.tree = format::uniformTree(grid.grid.dims);
         format::Asset adaptive = grid;
-        for (int k = 0; k < 3; ++k) adaptive.grid.dims[k] = 16;
-        adaptive.header.flags |= format::kFlagTree;
-        adaptive.tree = test::randomTree(adaptive.grid.dims, 60, 5);
-        uint32_t leaves = 0;
-        std::vector<format::TreeBox> boxes;
-        ASSERT_TRUE(format::validateTree(adaptive.grid.dims, adaptive.tree, leaves, &boxes));
-        adaptive.voxels.clear();
-        for (uint32_t v = 0; v < leaves; ++v)
-            if (v % 5 != 2) adaptive.voxels.push_back({v, 0.5f + 0.01f * float(v)});
+        const std::vector<format::TreeBox> boxes = test::makeRandomTreeAsset(adaptive, 16, 60, 5, 5, 2);
+        ASSERT_FALSE(boxes.empty());
+        const uint32_t leaves = uint32_t(boxes.size());
         std::mt19937 rng(8);
-        adaptive.weights.resize(adaptive.voxels.size() * adaptive.topology.parameterCount());
-        for (float& w : adaptive.weights) w = format::halfToFloat(format::floatToHalf(float(int(rng() % 1201) - 600) / 1000.0f));
         // Runs of points in each leaf, in leaf order.
         std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
         Points pts;

@@ -74,4 +74,24 @@ inline std::vector<format::TreeNode> randomTree(const uint32_t dims[3], uint32_t
     return nodes;
 }
 
+// `a` made a kd-tree asset over a dims^3 lattice of its box: randomTree(leaves, seed), a network on every leaf
+// but each `skip`-th from `offset` (skip 0: every leaf), scales 0.5 + 0.01 leaf, fp16-exact weights in
+// [-0.6, 0.6] from `seed`. Returns the leaves' boxes (empty if the tree were invalid, which randomTree's never is).
+inline std::vector<format::TreeBox> makeRandomTreeAsset(format::Asset& a, uint32_t dims, uint32_t leaves, uint32_t seed,
+                                                        uint32_t skip = 0, uint32_t offset = 0) {
+    for (int k = 0; k < 3; ++k) a.grid.dims[k] = dims;
+    a.header.flags |= format::kFlagTree;
+    a.tree = randomTree(a.grid.dims, leaves, seed);
+    uint32_t count = 0;
+    std::vector<format::TreeBox> boxes;
+    if (!format::validateTree(a.grid.dims, a.tree, count, &boxes)) return {};
+    a.voxels.clear();
+    for (uint32_t v = 0; v < count; ++v)
+        if (skip == 0 || v % skip != offset) a.voxels.push_back({v, 0.5f + 0.01f * float(v)});
+    std::mt19937 rng(seed);
+    a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+    for (float& w : a.weights) w = format::halfToFloat(format::floatToHalf(float(int(rng() % 1201) - 600) / 1000.0f));
+    return boxes;
+}
+
 }  // namespace nrad::test
