@@ -155,7 +155,8 @@ struct BlockContext {
 struct Deferred {
     uint32_t* blocks;  // blocks with an invalid, outside or empty-voxel point: located one point at a time
     size_t blockCount;
-    uint32_t* points;  // single points left to the general path (kd-tree blocks whose other points were recorded)
+    uint32_t* points;  // single points left to the general path (in a band or an empty cell; the rest of their
+                       // block was evaluated or recorded)
     size_t pointCount;
     uint32_t* index;  // points located in several voxels: point, network and position in the voxel
     int32_t* network;
@@ -177,10 +178,11 @@ uint64_t treeBlocksSoFar();
 // The shading contract's flags (format::kFlagScatteredRadiance, format::kFlagDemodulated) as the kernels see them.
 constexpr uint32_t kContentScattered = 1u, kContentDemodulated = 2u;
 
-// Evaluates blocks [0, blocks) of `width` points each. A block whose points are all valid, outside every
-// blending band and in one occupied voxel is located and evaluated in vector registers, with its results and
-// flags written; such a block spanning several voxels goes to def.index/network/local (flags written, one
-// entry of weight 1 per point); any other block goes to def.blocks untouched.
+// Evaluates blocks [0, blocks) of `width` points each. A block with an invalid or outside point goes to
+// def.blocks untouched. Any other is evaluated in vector registers with its results and flags written when
+// it lies in one occupied cell outside every band (grid voxel or kd-tree leaf), or blends in registers (grids:
+// at most kMaxBoxVoxels voxels); otherwise point by point: a point outside every band in an occupied cell
+// joins def.index/network/local (one entry of weight 1, flag written), any other goes to def.points.
 using BlockDriver = void (*)(const BlockContext& ctx, size_t blocks, Deferred& def);
 
 #if defined(__x86_64__) || defined(_M_X64)

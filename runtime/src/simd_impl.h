@@ -634,53 +634,49 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         const bool oneVoxel = V::equalMask(voxel, V::seti(voxel0)) == all;
         if (inBand & all) {  // blended: in registers when the block spans a few voxels
             F acc[3];
-            if (!evalBlended<V>(ctx, t, n, d, c, acc)) {
-                defer();
+            if (evalBlended<V>(ctx, t, n, d, c, acc)) {
+                ++def.blendedBlocks;
+                emit(acc);
                 continue;
             }
-            ++def.blendedBlocks;
-            emit(acc);
-            continue;
-        }
-        if (oneVoxel) {
-            int32_t network = g.dense[voxel0];
-            if (network < 0) {
-                defer();
+        } else if (oneVoxel) {
+            const int32_t network = g.dense[voxel0];
+            if (network >= 0) {
+                NetworkView net = ctx.networks;
+                net.params += size_t(network) * ctx.paramsPerNetwork;
+                net.scale = ctx.scales[network];
+                F in[kInputs] = {local[0], local[1], local[2], n[0], n[1], n[2], d[0], d[1], d[2]};
+                F out[kOutputs];
+                evalNetwork<V>(net, in, out);
+                toRadiance<V>(net, out);
+                emit(out);
                 continue;
             }
-            NetworkView net = ctx.networks;
-            net.params += size_t(network) * ctx.paramsPerNetwork;
-            net.scale = ctx.scales[network];
-            F in[kInputs] = {local[0], local[1], local[2], n[0], n[1], n[2], d[0], d[1], d[2]};
-            F out[kOutputs];
-            evalNetwork<V>(net, in, out);
-            toRadiance<V>(net, out);
-            emit(out);
-            continue;
         }
-        // Located, but in several voxels: record each point for the grouped pass.
+        // Point by point: one outside every band, in an occupied voxel, has that voxel alone with weight 1 and
+        // joins the grouped pass with its position input; any other (in a band of a block evalBlended could not
+        // take, or in an empty voxel) goes to the general path by itself.
+        if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
         alignas(64) int32_t voxels[W];
         V::storei(voxels, voxel);
-        int32_t networks[W];
-        bool occupied = true;
-        for (int l = 0; l < W; ++l) occupied &= (networks[l] = g.dense[voxels[l]]) >= 0;
-        if (!occupied) {
-            defer();
-            continue;
-        }
-        if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the grouped pass reads n and d
         alignas(64) float lx[W], ly[W], lz[W];
         V::store(lx, local[0]);
         V::store(ly, local[1]);
         V::store(lz, local[2]);
         for (int l = 0; l < W; ++l) {
-            size_t e = def.count++;
-            def.index[e] = uint32_t(first + size_t(l));
-            def.network[e] = networks[l];
+            const uint32_t point = uint32_t(first + size_t(l));
+            const int32_t network = g.dense[voxels[l]];
+            if (((inBand >> l) & 1u) || network < 0) {
+                def.points[def.pointCount++] = point;
+                continue;
+            }
+            const size_t e = def.count++;
+            def.index[e] = point;
+            def.network[e] = network;
             def.local[3 * e] = lx[l];
             def.local[3 * e + 1] = ly[l];
             def.local[3 * e + 2] = lz[l];
-            if (ctx.io.flags) ctx.io.flags[first + size_t(l)] = 0;
+            if (ctx.io.flags) ctx.io.flags[point] = 0;
         }
     }
 }
