@@ -969,11 +969,22 @@ NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, con
     if (!a || (count > 0 && (!positions || !normals || !directions || !surfaces || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
     if (count == 0) return NRAD_OK;
     return guarded([&] {
-        rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
-                      {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
-        NradStatus st = evaluateBatch(*a, count, v);
-        if (st != NRAD_OK) return st;
-        for (size_t i = 0; i < count; ++i) shadeOne(*a, surfaces[i], normals + 3 * i, directions + 3 * i, rgb + 3 * i);
+        // A G-buffer of the batch's arrays, its vectors as given: the vector kernels read, evaluate, shade and
+        // write each coherent vector in registers (the bits of evaluating, then shadeOne per point).
+        NradGBuffer g;
+        std::memset(&g, 0, sizeof g);
+        g.structSize = sizeof g;
+        g.flags = NRAD_GBUFFER_UNIT_VECTORS;
+        g.count = count;
+        g.position = {positions, 3 * sizeof(float), NRAD_FORMAT_F32};
+        g.normal = {normals, 3 * sizeof(float), NRAD_FORMAT_F32};
+        g.direction = {directions, 3 * sizeof(float), NRAD_FORMAT_F32};
+        g.surfaces = surfaces;
+        g.pointFlags = pointFlags;
+        g.output = rgb;
+        g.outputFormat = NRAD_FORMAT_F32;
+        g.outputChannels = 3;
+        shadeGBuffer(*a, g, threadScratch());
         return NRAD_OK;
     });
 }
