@@ -95,19 +95,20 @@ struct GBufferIo {
     bool normaliseNormals;  // normals normalised on input
     bool normaliseDirections;  // directions normalised on input (always with eye)
     // Points [0, safePoints) may be read with a few bytes past their last component (one 16-byte load per
-    // fp32 point, one 8-byte load per fp16 point): every point but the G-buffer's last.
+    // fp32 point, one 8-byte load per fp16 point): all but the G-buffer's last (last few, for strides under
+    // 4 bytes).
     size_t safePoints;
-    // Output pixels: `channels` (3 or 4; the fourth is 1) fp32 or fp16 values, `outStride` bytes apart. Null:
-    // the driver writes fp32 results to BatchIo::out and fills BatchIo::p/n/d for every point (the caller
-    // shades them); otherwise it writes the pixels of the blocks it completes, marking their points in `done`,
-    // and fills BatchIo::p/n/d only for the blocks it leaves to the general path.
+    // Output pixels: `channels` (3 or 4; the fourth is 1) fp32 or fp16 values, `outStride` bytes apart. The
+    // driver writes the pixels of the blocks it completes, marking their points in `done`, and fills
+    // BatchIo::p/n/d (fp32, prepared) for the blocks it leaves to the other paths, whose pixels the caller
+    // writes.
     uint8_t* out;
     size_t outStride;
     bool outHalf;
     int channels;
     uint8_t* done;  // per point, zeroed by the caller
-    // With `out`: the material terms (NradSurface's nine floats, `surfaceStride` bytes apart; null: none) the
-    // driver shades its pixels with, by the asset's content flags (nrad/eval.h shade(), as runtime.cpp's
+    // The material terms (NradSurface's nine floats, `surfaceStride` bytes apart; null: none) the driver
+    // shades its pixels with, by the asset's content flags (nrad/eval.h shade(), as runtime.cpp's
     // shadeOne applies it, bit for bit).
     const uint8_t* surfaces;
     size_t surfaceStride;
@@ -129,8 +130,8 @@ struct BatchIo {
 
 // A kd-tree partition as the block driver locates whole vectors in it (the grid above holds the box, the
 // lattice factors and, in `dense`, the leaf -> network table). A vector whose first point's leaf holds every
-// point of the vector away from every blending band is evaluated in registers; any other goes to the general
-// path. nodes: 3 words per node (format::TreeNode: axis, split, child); starts: eval::buildTreeStarts' table.
+// point of the vector away from every blending band is evaluated in registers; any other is taken point by
+// point (BlockDriver). nodes: 3 words per node (format::TreeNode: axis, split, child); starts: eval::buildTreeStarts' table.
 struct LocateTree {
     const uint32_t* nodes;  // null: the grid
     const uint32_t* starts;
@@ -153,12 +154,12 @@ struct BlockContext {
 
 // What a block driver leaves to the grouped (sorted) pass.
 struct Deferred {
-    uint32_t* blocks;  // blocks with an invalid, outside or empty-voxel point: located one point at a time
+    uint32_t* blocks;  // blocks with an invalid or outside point: located one point at a time
     size_t blockCount;
     uint32_t* points;  // single points left to the general path (in a band or an empty cell; the rest of their
                        // block was evaluated or recorded)
     size_t pointCount;
-    uint32_t* index;  // points located in several voxels: point, network and position in the voxel
+    uint32_t* index;  // points with one support recorded for the grouped pass: point, network, position input
     int32_t* network;
     float* local;  // 3 per point
     size_t count;

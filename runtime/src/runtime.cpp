@@ -408,8 +408,9 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
     const rt::NetworkView first{a.asset.weights.data(), uint32_t(t.hiddenWidths.size()), t.hiddenWidths.data(),
                                 a.scales.empty() ? 1.0f : a.scales[0], exponential};
 
-    // 1. Whole vectors of points through the SIMD block driver: a vector of points in one voxel (the
-    //    common case for coherent batches) is located and evaluated in registers there.
+    // 1. Whole vectors of points through the SIMD block driver: a vector of points in one cell (the common
+    //    case for coherent batches) is located and evaluated in registers there; the others are located there
+    //    point by point where that is exact (one support), the rest left to step 2.
     int width = 0;
     rt::BlockDriver driver = blockDriverOf(a, width);
     size_t blocks = driver ? count / size_t(width) : 0;
@@ -447,8 +448,8 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
         if (def.gbufferBlocks) gGBufferBlocks.fetch_add(def.gbufferBlocks, std::memory_order_relaxed);
         if (def.treeBlocks) gTreeBlocks.fetch_add(def.treeBlocks, std::memory_order_relaxed);
     }
-    // 2. The rest one point at a time: blocks with an invalid, outside, empty-voxel or blended point, and the
-    //    tail.
+    // 2. The rest one point at a time: the points the driver left (in a band it could not blend, in an empty
+    //    cell), the blocks with an invalid or outside point, and the tail.
     for (size_t e = 0; e < def.count; ++e) s.weight[e] = 1.0f;
     s.entries = def.count;
     for (size_t k = 0; k < def.pointCount; ++k) locateOne(a, v, def.points[k], s);
@@ -700,10 +701,9 @@ rt::StridedAttribute stridedOf(const NradAttribute& at, size_t first) {
 }
 
 // A G-buffer, tile by tile. Where the asset has a block driver, the driver reads each whole vector of texels
-// straight from the caller's attributes (rt::GBufferIo) and, without surfaces to shade, writes its pixels too;
-// the rest of a tile (the last partial vector, and the vectors the driver leaves to the general path, which it
-// converts into the tile's fp32 arrays) is gathered, evaluated, shaded and written here. Either way a point
-// gets the same bits.
+// straight from the caller's attributes (rt::GBufferIo), shades and writes its pixels; the rest of a tile (the
+// last partial vector, and the points the driver leaves to the other paths, which it converts into the tile's
+// fp32 arrays) is gathered, evaluated, shaded and written here. Either way a point gets the same bits.
 void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     Scratch s = carveScratch(scratch);
     auto tileAt = (reinterpret_cast<uintptr_t>(scratch) + kScratchBytes + 63) & ~uintptr_t(63);
@@ -716,7 +716,6 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
     int width = 0;
     const bool fused = blockDriverOf(a, width) != nullptr;
-    const bool fusedOut = fused;
     for (size_t first = 0; first < g.count; first += kTilePoints) {
         const size_t n = std::min(kTilePoints, g.count - first);
         // The points the block driver will not read: all of them without one, else the last partial vector.
@@ -750,18 +749,16 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
             const size_t tail = std::max({unsafeTail(io.p), unsafeTail(io.n), eye ? size_t(0) : unsafeTail(io.d)});
             const size_t safeEnd = g.count > tail ? g.count - tail : 0;
             io.safePoints = safeEnd > first ? std::min(n, safeEnd - first) : 0;
-            if (fusedOut) {
-                io.out = static_cast<uint8_t*>(g.output) + first * outStride;
-                io.outStride = outStride;
-                io.outHalf = half;
-                io.channels = int(channels);
-                io.done = t.done;
-                std::memset(t.done, 0, n);
-                if (g.surfaces) {
-                    io.surfaces = reinterpret_cast<const uint8_t*>(g.surfaces) + first * surfaceStride;
-                    io.surfaceStride = surfaceStride;
-                    io.contentFlags = a.asset.header.flags;
-                }
+            io.out = static_cast<uint8_t*>(g.output) + first * outStride;
+            io.outStride = outStride;
+            io.outHalf = half;
+            io.channels = int(channels);
+            io.done = t.done;
+            std::memset(t.done, 0, n);
+            if (g.surfaces) {
+                io.surfaces = reinterpret_cast<const uint8_t*>(g.surfaces) + first * surfaceStride;
+                io.surfaceStride = surfaceStride;
+                io.contentFlags = a.asset.header.flags;
             }
         }
         const rt::BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
@@ -771,12 +768,12 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
         // The pixels the driver did not write, run by run: the output's channels in fp32, shaded where asked,
         // then converted and stored with the output's stride.
         for (size_t runStart = 0; runStart < n;) {
-            if (fusedOut && t.done[runStart]) {  // the driver writes whole vectors
+            if (fused && t.done[runStart]) {  // the driver writes whole vectors
                 runStart += size_t(width);
                 continue;
             }
             size_t runEnd = runStart + 1;
-            while (runEnd < n && !(fusedOut && t.done[runEnd])) ++runEnd;
+            while (runEnd < n && !(fused && t.done[runEnd])) ++runEnd;
             const size_t m = runEnd - runStart;
             for (size_t j = runStart; j < runEnd; ++j) {
                 float* rgb = t.rgb + 3 * j;

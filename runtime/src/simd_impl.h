@@ -254,27 +254,27 @@ bool evalBlended(const BlockContext& ctx, const typename V::F t[3], const typena
 
 // ----- G-buffers: strided fp32/fp16 attributes in, pixels out (GBufferIo) ----------------------------------------
 
-// Three components of W points of an attribute, reading exactly each point's bytes: into rows of T (float or
-// the fp16 bits), transposed.
-template <class V, class T>
-inline void copyRows(const StridedAttribute& a, size_t first, T rows[3][V::W]) {
-    const uint8_t* s = a.base + first * a.stride;
-    for (int l = 0; l < V::W; ++l, s += a.stride) {
-        T xyz[3];
-        std::memcpy(xyz, s, sizeof xyz);
-        for (int k = 0; k < 3; ++k) rows[k][l] = xyz[k];
+// N values of type T (float, or fp16 bits) of W records `stride` bytes apart from `s`, reading exactly each
+// record's N T: transposed into N rows of W.
+template <class V, int N, class T>
+inline void copyRows(const uint8_t* s, size_t stride, T rows[N][V::W]) {
+    for (int l = 0; l < V::W; ++l, s += stride) {
+        T values[N];
+        std::memcpy(values, s, sizeof values);
+        for (int k = 0; k < N; ++k) rows[k][l] = values[k];
     }
 }
 
 template <class V>
 inline void loadExact(const StridedAttribute& a, size_t first, typename V::F v[3]) {
+    const uint8_t* s = a.base + first * a.stride;
     if (a.half) {
         alignas(64) uint16_t h[3][V::W];
-        copyRows<V>(a, first, h);
+        copyRows<V, 3>(s, a.stride, h);
         for (int k = 0; k < 3; ++k) v[k] = V::loadHalf(h[k]);
     } else {
         alignas(64) float f[3][V::W];
-        copyRows<V>(a, first, f);
+        copyRows<V, 3>(s, a.stride, f);
         for (int k = 0; k < 3; ++k) v[k] = V::load(f[k]);
     }
 }
@@ -295,6 +295,12 @@ NRAD_ALWAYS_INLINE inline void loadAttribute(const StridedAttribute& a, size_t f
     loadExact<V>(a, first, v);
 }
 
+// Lanes of v that are finite (inf x 0 and NaN x 0 are NaN).
+template <class V>
+inline unsigned finiteMask(typename V::F v) {
+    return V::equalMask(V::mul(v, V::zero()), V::zero());
+}
+
 // v / |v| lane by lane, NaN where |v|^2 is zero or not finite: runtime.cpp's normalise(), the same operations
 // in the same order.
 template <class V>
@@ -302,7 +308,7 @@ inline void normalise3(typename V::F v[3]) {
     using F = typename V::F;
     const F zero = V::zero();
     const F len2 = V::add(V::add(V::mul(v[0], v[0]), V::mul(v[1], v[1])), V::mul(v[2], v[2]));
-    const unsigned ok = ~V::leMask(len2, zero) & V::equalMask(V::mul(len2, zero), zero);  // > 0 and finite
+    const unsigned ok = ~V::leMask(len2, zero) & finiteMask<V>(len2);  // > 0 and finite
     const F inv = V::div(V::set1(1.0f), V::sqrt(len2));
     uint32_t nanBits = 0x7FC00000u;
     float nan;
@@ -337,12 +343,6 @@ inline typename V::F exp2Poly(typename V::F x) {
     return V::timesPow2(q, n);
 }
 
-// Lanes of v that are finite (inf x 0 and NaN x 0 are NaN).
-template <class V>
-inline unsigned finiteMask(typename V::F v) {
-    return V::equalMask(V::mul(v, V::zero()), V::zero());
-}
-
 // x clamped to [0, 1] as `x < 0 ? 0 : (x > 1 ? 1 : x)` does, NaN kept.
 template <class V>
 inline typename V::F clampKeepNaN(typename V::F x) {
@@ -366,11 +366,7 @@ inline void shadePixels(const GBufferIo& g, size_t first, const typename V::F n[
         V::loadSurfaces(s, g.surfaceStride, m);
     } else {
         alignas(64) float rows[9][W];
-        for (int l = 0; l < W; ++l, s += g.surfaceStride) {
-            float terms[9];
-            std::memcpy(terms, s, sizeof terms);
-            for (int j = 0; j < 9; ++j) rows[j][l] = terms[j];
-        }
+        copyRows<V, 9>(s, g.surfaceStride, rows);
         for (int j = 0; j < 9; ++j) m[j] = V::load(rows[j]);
     }
     const F zero = V::zero(), one = V::set1(1.0f);
@@ -434,6 +430,34 @@ inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rg
     }
 }
 
+// eval::localInBox for W points (lattice coordinate t, the box's float(lo) and float(hi - lo)), clamped to
+// [-1, 1]: the position input of a point with one support.
+template <class V>
+inline typename V::F localInBox(typename V::F t, typename V::F lo, typename V::F size) {
+    const typename V::F one = V::set1(1.0f);
+    const typename V::F q = V::sub(V::div(V::mul(V::set1(2.0f), V::sub(t, lo)), size), one);
+    return V::min(V::max(q, V::set1(-1.0f)), one);
+}
+
+// A block's points, one by one: those in `keep` whose cell has a network join the grouped pass (one entry of
+// weight 1 with its position input, flag written); every other goes to def.points for the general path.
+template <class V>
+inline void recordLanes(Deferred& def, uint8_t* flags, size_t first, unsigned keep, const int32_t networks[V::W],
+                        const float local[3][V::W]) {
+    for (int l = 0; l < V::W; ++l) {
+        const uint32_t point = uint32_t(first + size_t(l));
+        if (!((keep >> l) & 1u) || networks[l] < 0) {
+            def.points[def.pointCount++] = point;
+            continue;
+        }
+        const size_t e = def.count++;
+        def.index[e] = point;
+        def.network[e] = networks[l];
+        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = local[k][l];
+        if (flags) flags[point] = 0;
+    }
+}
+
 // The leaf of lattice point t by the planes alone (the bands do not matter inside a leaf's open box): its
 // start-table cell's node, then down the tree.
 inline uint32_t treeLeafOf(const LocateTree& tree, const float t[3]) {
@@ -467,12 +491,9 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const floa
     if (inside != all) return false;
     const int32_t network = ctx.grid.dense[leaf];
     if (network < 0) return false;
-    const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
+    const F zero = V::zero();
     F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
-    for (int k = 0; k < 3; ++k) {  // eval::localInBox, clamped to [-1, 1]
-        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::set1(box[6 + k]))), V::set1(box[9 + k])), one);
-        in[k] = V::min(V::max(q, V::sub(zero, one)), one);
-    }
+    for (int k = 0; k < 3; ++k) in[k] = localInBox<V>(t[k], V::set1(box[6 + k]), V::set1(box[9 + k]));
     NetworkView net = ctx.networks;
     net.params += size_t(network) * ctx.paramsPerNetwork;
     net.scale = ctx.scales[network];
@@ -516,27 +537,14 @@ void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], size_t f
     alignas(64) int32_t networks[W];
     V::storei(networks, V::gatheri(ctx.grid.dense, leaves));
     const I box = V::mullo(leaves, V::seti(12));
-    const F zero = V::zero(), one = V::set1(1.0f), two = V::set1(2.0f);
     unsigned inside = all;
     alignas(64) float local[3][W];
     for (int k = 0; k < 3; ++k) {
         const float* b = tree.leaves + k;
         inside &= ~V::leMask(t[k], V::gatherf(b, box)) & ~V::geMask(t[k], V::gatherf(b + 3, box));
-        const F q = V::sub(V::div(V::mul(two, V::sub(t[k], V::gatherf(b + 6, box))), V::gatherf(b + 9, box)), one);
-        V::store(local[k], V::min(V::max(q, V::sub(zero, one)), one));
+        V::store(local[k], localInBox<V>(t[k], V::gatherf(b + 6, box), V::gatherf(b + 9, box)));
     }
-    for (int l = 0; l < W; ++l) {
-        const uint32_t point = uint32_t(first + size_t(l));
-        if (!((inside >> l) & 1u) || networks[l] < 0) {
-            def.points[def.pointCount++] = point;
-            continue;
-        }
-        const size_t e = def.count++;
-        def.index[e] = point;
-        def.network[e] = networks[l];
-        for (int k = 0; k < 3; ++k) def.local[3 * e + size_t(k)] = local[k][l];
-        if (flags) flags[point] = 0;
-    }
+    recordLanes<V>(def, flags, first, inside, networks, local);
 }
 
 // A G-buffer block's prepared inputs into BatchIo's arrays, for the paths that read them there.
@@ -562,7 +570,6 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         const GBufferIo* gb = ctx.io.gbuffer;
         if (gb) {
             loadGBuffer<V>(*gb, first, p, n, d);
-            if (!gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the caller shades every point
         } else {
             load3<V, Stride>(ctx.io.p, first, p);
             load3<V, Stride>(ctx.io.n, first, n);
@@ -570,12 +577,12 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         }
         // This block to the general path, which reads the points from BatchIo.
         auto defer = [&] {
-            if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);
+            if (gb) spill<V, Stride>(ctx.io, first, p, n, d);
             def.blocks[def.blockCount++] = uint32_t(b);
         };
-        // This block's results: into the G-buffer's pixels or BatchIo::out.
+        // This block's results: into the G-buffer's pixels (shaded first when it has surfaces) or BatchIo::out.
         auto emit = [&](const F result[3]) {
-            if (gb && gb->out) {
+            if (gb) {
                 F rgb[3] = {result[0], result[1], result[2]};
                 if (gb->surfaces) shadePixels<V>(*gb, first, n, d, rgb);
                 storePixels<V>(*gb, first, rgb);
@@ -590,7 +597,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         // Finite normal and direction: 0 x (their sum) is 0, not NaN (a sum that overflows only sends the
         // block to the general path). Positions inside [lower, upper] (false for NaN): the format's rule.
         F sum = V::add(V::add(V::add(n[0], n[1]), V::add(n[2], d[0])), V::add(d[1], d[2]));
-        unsigned ok = V::equalMask(V::mul(sum, V::zero()), V::zero());
+        unsigned ok = finiteMask<V>(sum);
         for (int k = 0; k < 3; ++k) ok &= V::geMask(p[k], V::set1(g.lower[k])) & V::leMask(p[k], V::set1(g.upper[k]));
         if (ok != all) {  // some point is invalid or outside: the block takes the general path
             defer();
@@ -607,7 +614,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 ++def.treeBlocks;
                 emit(out);
             } else {
-                if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
+                if (gb) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
                 recordTreeLanes<V>(ctx, t, first, def, ctx.io.flags);
             }
             continue;
@@ -656,28 +663,13 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         // Point by point: one outside every band, in an occupied voxel, has that voxel alone with weight 1 and
         // joins the grouped pass with its position input; any other (in a band of a block evalBlended could not
         // take, or in an empty voxel) goes to the general path by itself.
-        if (gb && gb->out) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
-        alignas(64) int32_t voxels[W];
+        if (gb) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
+        alignas(64) int32_t voxels[W], networks[W];
         V::storei(voxels, voxel);
-        alignas(64) float lx[W], ly[W], lz[W];
-        V::store(lx, local[0]);
-        V::store(ly, local[1]);
-        V::store(lz, local[2]);
-        for (int l = 0; l < W; ++l) {
-            const uint32_t point = uint32_t(first + size_t(l));
-            const int32_t network = g.dense[voxels[l]];
-            if (((inBand >> l) & 1u) || network < 0) {
-                def.points[def.pointCount++] = point;
-                continue;
-            }
-            const size_t e = def.count++;
-            def.index[e] = point;
-            def.network[e] = network;
-            def.local[3 * e] = lx[l];
-            def.local[3 * e + 1] = ly[l];
-            def.local[3 * e + 2] = lz[l];
-            if (ctx.io.flags) ctx.io.flags[point] = 0;
-        }
+        for (int l = 0; l < W; ++l) networks[l] = g.dense[voxels[l]];
+        alignas(64) float lanes[3][W];
+        for (int k = 0; k < 3; ++k) V::store(lanes[k], local[k]);
+        recordLanes<V>(def, ctx.io.flags, first, ~inBand & all, networks, lanes);
     }
 }
 

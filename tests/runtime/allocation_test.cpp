@@ -64,6 +64,21 @@ TEST(RuntimeMemory, EvaluationAllocatesNothingAndScratchGoesThroughTheHook) {
                 nrm[3 * i + size_t(k)] = k == 2 ? 1.0f : 0.0f;
                 d[3 * i + size_t(k)] = k == 1 ? 1.0f : 0.0f;
             }
+        // A G-buffer of the same points into `output` (fp32 RGB or fp16 RGBA), shaded when `shaded`.
+        auto describe = [&](void* output, uint32_t format, uint32_t channels, const NradSurface* shaded) {
+            NradGBuffer g;
+            std::memset(&g, 0, sizeof g);
+            g.structSize = sizeof g;
+            g.count = n;
+            g.position = {p.data(), 0, NRAD_FORMAT_F32};
+            g.normal = {nrm.data(), 0, NRAD_FORMAT_F32};
+            g.direction = {d.data(), 0, NRAD_FORMAT_F32};
+            g.surfaces = shaded;
+            g.output = output;
+            g.outputFormat = format;
+            g.outputChannels = channels;
+            return g;
+        };
         Hook hook;
         nradSetAllocator(countingAllocate, countingFree, &hook);
         size_t news = 0;
@@ -79,15 +94,7 @@ TEST(RuntimeMemory, EvaluationAllocatesNothingAndScratchGoesThroughTheHook) {
                 EXPECT_EQ(asset.shadeBatch(n, p.data(), nrm.data(), d.data(), surfaces.data(), rgb.data(), flags.data()), NRAD_OK);
                 float one[3];
                 for (size_t i = 0; i < 1000; ++i) EXPECT_EQ(asset.evaluate(&p[3 * i], &nrm[3 * i], &d[3 * i], one), NRAD_OK);
-                NradGBuffer gb;  // the thread's scratch, shared with the calls above
-                std::memset(&gb, 0, sizeof gb);
-                gb.structSize = sizeof gb;
-                gb.count = n;
-                gb.position = {p.data(), 0, NRAD_FORMAT_F32};
-                gb.normal = {nrm.data(), 0, NRAD_FORMAT_F32};
-                gb.direction = {d.data(), 0, NRAD_FORMAT_F32};
-                gb.output = rgb.data();
-                gb.outputChannels = 3;
+                const NradGBuffer gb = describe(rgb.data(), NRAD_FORMAT_F32, 3, nullptr);  // the thread's scratch
                 EXPECT_EQ(nradShadeGBuffer(asset.get(), &gb, nullptr, 0), NRAD_OK);
             }
             gCounting = false;
@@ -104,17 +111,7 @@ TEST(RuntimeMemory, EvaluationAllocatesNothingAndScratchGoesThroughTheHook) {
         // With the caller's scratch, a G-buffer call allocates nothing at all, not even the thread's scratch.
         std::vector<uint8_t> scratch(nradGetScratchSize());
         std::vector<uint16_t> half(4 * n);
-        NradGBuffer g;
-        std::memset(&g, 0, sizeof g);
-        g.structSize = sizeof g;
-        g.count = n;
-        g.position = {p.data(), 0, NRAD_FORMAT_F32};
-        g.normal = {nrm.data(), 0, NRAD_FORMAT_F32};
-        g.direction = {d.data(), 0, NRAD_FORMAT_F32};
-        g.surfaces = surfaces.data();
-        g.output = half.data();
-        g.outputFormat = NRAD_FORMAT_F16;
-        g.outputChannels = 4;
+        const NradGBuffer g = describe(half.data(), NRAD_FORMAT_F16, 4, surfaces.data());
         Hook untouched;
         nradSetAllocator(countingAllocate, countingFree, &untouched);
         std::thread gbuffer([&] {
