@@ -304,6 +304,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
             gs.rays = stats.rays.total();
             result.sampleStats.rays += stats.rays;
             result.sampleStats.nonFinitePaths += stats.nonFinitePaths;
+            result.sampleStats.hiddenSamples += stats.hiddenSamples;
             result.sampleCount += fresh.size();
             std::vector<uint32_t> cells(fresh.size());
             tbb::parallel_for(size_t(0), fresh.size(), [&](size_t i) {

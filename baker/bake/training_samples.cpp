@@ -64,27 +64,6 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
             requests[k] = {uint32_t(pickByCdf(cdf, uPiece)), s.get2D(), s.get2D(), hashCombine(hashCombine(settings.seed, kPathStream), i)};
         }
     });
-    for (const PointRequest& r : requests) ++count[pieces.pieces()[r.piece].voxel];
-    stats.points = settings.points;
-    for (uint32_t v = 0; v < grid.voxelCount(); ++v) {
-        const std::vector<uint32_t>& own = pieces.piecesOf(v);
-        if (own.empty() || count[v] >= settings.minSamplesPerVoxel) continue;
-        std::vector<double> vcdf;
-        double vacc = 0.0;
-        for (uint32_t p : own) vcdf.push_back(vacc += pieces.pieces()[p].area);
-        uint32_t stream = hashCombine(hashCombine(settings.seed, kFloorStream), v);
-        if (settings.generation != 0) stream = hashCombine(stream, settings.generation);
-        for (uint32_t j = count[v]; j < settings.minSamplesPerVoxel; ++j) {
-            Sampler s(stream, j);
-            float uPiece = s.get1D();
-            uint32_t pathStream = hashCombine(hashCombine(hashCombine(settings.seed, kPathStream), 0x80000000u | v), j);
-            if (settings.generation != 0) pathStream = hashCombine(pathStream, settings.generation);
-            PointRequest r{own[pickByCdf(vcdf, uPiece)], s.get2D(), s.get2D(), pathStream};
-            requests.push_back(r);
-            ++stats.floorPoints;
-        }
-    }
-
     // The point, its outgoing direction and the interaction the paths start from.
     auto startOf = [&](const PointRequest& r, glm::vec3& p, glm::vec3& wo) {
         const SurfacePiece& piece = pieces.pieces()[r.piece];
@@ -109,6 +88,53 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         si.p = p;  // the exact sampled point (inside its voxel)
         return si;
     };
+
+    // Points no viewer sees from their direction are dropped before anything is traced from them, and the
+    // floor counts only the points that remain.
+    auto hiddenFrom = [&](const PointRequest& r) {
+        if (!settings.dropHidden) return false;
+        glm::vec3 p, wo;
+        return !tracer.viewable(startOf(r, p, wo));
+    };
+    std::vector<uint8_t> hidden(requests.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) hidden[i] = hiddenFrom(requests[i]);
+    });
+    for (size_t i = 0; i < requests.size(); ++i) {
+        if (hidden[i]) {
+            ++stats.hiddenSamples;
+            continue;
+        }
+        ++count[pieces.pieces()[requests[i].piece].voxel];
+    }
+    stats.points = settings.points;
+    // The floor, voxel by voxel (in parallel, each voxel from its own stream): candidates from the voxel's own
+    // surface until it has the floor's number of points a viewer sees, or 16 times the floor was tried (a
+    // voxel whose surface is all hidden keeps what it has).
+    std::vector<std::vector<PointRequest>> floorOf(grid.voxelCount());
+    tbb::parallel_for(uint32_t(0), grid.voxelCount(), [&](uint32_t v) {
+        const std::vector<uint32_t>& own = pieces.piecesOf(v);
+        if (own.empty() || count[v] >= settings.minSamplesPerVoxel) return;
+        std::vector<double> vcdf;
+        double vacc = 0.0;
+        for (uint32_t p : own) vcdf.push_back(vacc += pieces.pieces()[p].area);
+        uint32_t stream = hashCombine(hashCombine(settings.seed, kFloorStream), v);
+        if (settings.generation != 0) stream = hashCombine(stream, settings.generation);
+        const uint32_t needed = settings.minSamplesPerVoxel - count[v];
+        for (uint32_t j = 0; j < 16 * settings.minSamplesPerVoxel && floorOf[v].size() < needed; ++j) {
+            Sampler s(stream, j);
+            float uPiece = s.get1D();
+            uint32_t pathStream = hashCombine(hashCombine(hashCombine(settings.seed, kPathStream), 0x80000000u | v), j);
+            if (settings.generation != 0) pathStream = hashCombine(pathStream, settings.generation);
+            PointRequest r{own[pickByCdf(vcdf, uPiece)], s.get2D(), s.get2D(), pathStream};
+            if (!hiddenFrom(r)) floorOf[v].push_back(r);
+        }
+    });
+    for (const std::vector<PointRequest>& f : floorOf) {
+        requests.insert(requests.end(), f.begin(), f.end());
+        stats.floorPoints += f.size();
+    }
+    hidden.resize(requests.size(), 0);
 
     // Learned light selection: train the network on paths from these points first, then keep it fixed.
     if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty()) {
@@ -146,6 +172,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 pieces.samplePiece(piece, r.uPoint, b1, b2);
                 if (surfaceOpacity(scene, piece.triangle, b1, b2) <= 0.0f) continue;
             }
+            if (hidden[i]) continue;
             glm::dvec3 sum(0.0);
             uint32_t finite = 0;
             for (uint32_t j = 0; j < settings.paths; ++j) {
@@ -188,6 +215,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
 
     samples.reserve(out.size());
     for (size_t i = 0; i < out.size(); ++i) {
+        if (hidden[i]) continue;  // counted above
         if (!valid[i]) {
             ++stats.droppedSamples;
             continue;

@@ -35,6 +35,10 @@ struct SampleSettings {
     int maxDepth = 6;  // segments, counting the (virtual) one that reached the point; 0 = unbounded
     uint32_t seed = 0;
     uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area
+    // Drop points no viewer can see from their direction wo (PathTracer::viewable: the view ray meets the
+    // back of a single-sided surface first): their targets, dark, would otherwise be drawn by the same
+    // network as the lit surface next to them.
+    bool dropHidden = true;
     // Learned light selection (the tracer's selector in learned mode): paths traced from the training points,
     // before the samples, to train the selection network, which then stays fixed (so samples can be traced
     // in any order). Their estimates are not used.
@@ -57,6 +61,7 @@ struct SampleStats {
     uint64_t floorPoints = 0;  // added to voxels below the floor
     uint64_t nonFinitePaths = 0;  // path estimates that were NaN or Inf: dropped
     uint64_t droppedSamples = 0;  // points whose every path estimate was non-finite
+    uint64_t hiddenSamples = 0;  // points no viewer sees from their direction (dropped, SampleSettings::dropHidden)
     RayCounters rays;
     std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
     uint64_t neeWarmupPaths = 0, neeTrainingSteps = 0;

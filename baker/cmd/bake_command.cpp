@@ -330,13 +330,13 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     if (!r.voxels.empty()) meanErr /= double(r.voxels.size());
     for (const VoxelTrainResult& v : r.voxels)
         for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
-    std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu dropped, %llu "
+    std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu hidden, %llu dropped, %llu "
                 "non-finite paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
                 "time: load %.2f s, setup %.2f s, sampling %.2f s, partition %.2f s, training %.2f s, writing %.3f s\n",
                 o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), unsigned(r.asset.cellCount()),
                 r.asset.tree.empty() ? "voxels" : "leaves", r.sampleCount,
-                (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.droppedSamples,
-                (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
+                (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.hiddenSamples,
+                (unsigned long long)r.sampleStats.droppedSamples, (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
                 loadSeconds, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, writeSeconds);
 
     if (!r.generations.empty()) {
@@ -396,6 +396,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         j["samples"] = r.sampleCount;
         j["floor_samples"] = r.sampleStats.floorPoints;
         j["dropped_samples"] = r.sampleStats.droppedSamples;
+        j["hidden_samples"] = r.sampleStats.hiddenSamples;
         j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
         j["nee"] = {{"mode", neeModeName(o.nee)},
                     {"warmup_paths", r.sampleStats.neeWarmupPaths},

@@ -232,6 +232,13 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
     return L;
 }
 
+bool PathTracer::viewable(const SurfaceInteraction& si) const {
+    Hit hit = accel_.intersect(si.p, si.wo, si.spawnDistance(si.wo));
+    if (!hit.valid()) return true;
+    const Material& m = scene_.materials[scene_.mesh.materialIds[hit.triangle]];
+    return m.doubleSided || glm::dot(scene_.mesh.geometricNormal(hit.triangle), si.wo) <= 0.0f;
+}
+
 Image PathTracer::render(const Camera& camera, const RenderSettings& settings, RenderStats* stats,
                          const std::function<void(double)>& progress) const {
     auto start = std::chrono::steady_clock::now();

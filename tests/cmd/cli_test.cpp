@@ -176,7 +176,10 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     nlohmann::json stats = nlohmann::json::parse(f);
     EXPECT_EQ(stats["training"]["method"], "integral");
     ASSERT_EQ(stats["training"]["generations"].size(), 3u);
-    EXPECT_GE(stats["training"]["generations"][2]["samples"].get<size_t>(), 3000u);
+    // 3,000 points a round, less those no viewer sees (3.6% of the Cornell box's: the floor under the boxes,
+    // the ceiling behind the light).
+    EXPECT_GE(stats["training"]["generations"][2]["samples"].get<size_t>(), 2800u);
+    EXPECT_LT(stats["training"]["generations"][2]["samples"].get<size_t>(), 3000u);
     EXPECT_GT(stats["training"]["generations"][2]["elapsed_seconds"].get<double>(),
               stats["training"]["generations"][1]["elapsed_seconds"].get<double>());
     RunResult info = run("info '" + dir + "/a.nrad'");
@@ -190,7 +193,7 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     std::ifstream rj(dir + "/report/report.json");
     nlohmann::json report = nlohmann::json::parse(rj);
     EXPECT_NE(report["baseline"]["training_settings"].get<std::string>().find("integral equation"), std::string::npos);
-    EXPECT_GE(report["baseline"]["training_samples"].get<size_t>(), 160000u);
+    EXPECT_GE(report["baseline"]["training_samples"].get<size_t>(), 150000u);  // 160,000 less the hidden
 }
 
 TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
