@@ -129,8 +129,15 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             if (v.is_number()) total += v.get<double>();
         std::printf("  bake: %.2f s, %s bytes\n", total, bakeStats.value("asset_bytes", nlohmann::json("?")).dump().c_str());
     }
-    std::printf("  reference: %s%s\n  report: %s\n", r.referenceSource.c_str(),
-                r.referenceSeconds > 0 ? (" (" + std::to_string(r.referenceSeconds) + " s)").c_str() : "", html.c_str());
+    std::string noise;
+    if (r.referenceNoise >= 0.0) {
+        char text[160];
+        std::snprintf(text, sizeof text, "; its own noise adds about %.3g to every relMSE above (the neural image against the truth: "
+                      "about %.3g)", r.referenceNoise, std::max(0.0, r.neural.metrics.relMse - r.referenceNoise));
+        noise = text;
+    }
+    std::printf("  reference: %s%s%s\n  report: %s\n", r.referenceSource.c_str(),
+                r.referenceSeconds > 0 ? (" (" + std::to_string(r.referenceSeconds) + " s)").c_str() : "", noise.c_str(), html.c_str());
     return kExitOk;
 }
 

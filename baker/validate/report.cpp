@@ -232,6 +232,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     j["settings"] = {{"reference_spp", s.referenceSpp}, {"max_depth", s.maxDepth}, {"neural_spp", s.neuralSpp},
                      {"curve_max_spp", s.curveMaxSpp}, {"seed", s.seed}, {"exposure", s.exposure}};
     j["reference"] = {{"source", r.referenceSource}, {"cache_file", r.referenceCacheFile}, {"seconds", r.referenceSeconds}};
+    if (r.referenceNoise >= 0.0) j["reference"]["noise_relmse_estimate"] = num(r.referenceNoise);
     nlohmann::json curve = nlohmann::json::array();
     for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
     j["path_tracer_convergence"] = curve;
@@ -353,7 +354,11 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     h << "<h1>nrad validation</h1>\n<p>Scene <code>" << escape(r.scenePath) << "</code>, asset <code>" << escape(r.assetPath) << "</code>, "
       << r.width << "x" << r.height << " pixels, environment: " << escape(r.environment) << ". Reference: " << r.settings.referenceSpp << " paths per pixel, path length "
       << (r.settings.maxDepth ? std::to_string(r.settings.maxDepth) : std::string("unbounded")) << " ("
-      << escape(r.referenceSource) << "). Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
+      << escape(r.referenceSource) << ")";
+    if (r.referenceNoise >= 0.0)
+        h << "; its own noise adds about " << fmt("%.3g", r.referenceNoise)
+          << " to every relMSE measured against it (estimated from the path tracer's curve)";
+    h << ". Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
     h << "<p class=\"summary\">" << escape(headlineSentence(r)) << "</p>\n";
     h << "<h2>Images</h2>\n<div>";
     figure("reference.png", "reference (path traced)");

@@ -238,6 +238,12 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     return hex;
 }
 
+double referenceNoise(const std::vector<CurvePoint>& curve, int referenceSpp) {
+    if (curve.empty() || referenceSpp <= 0) return 0.0;
+    const CurvePoint& last = curve.back();
+    return last.metrics.relMse * double(last.spp) / (double(last.spp) + double(referenceSpp));
+}
+
 double equalErrorTime(const std::vector<CurvePoint>& curve, double relMse, bool& extrapolated) {
     extrapolated = true;
     if (curve.empty() || !(relMse > 0.0)) return 0.0;
@@ -330,6 +336,14 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         r.curve.push_back({int(spp), st.seconds, compareImages(img, r.reference, settings.exposure)});
         char line[160];
         std::snprintf(line, sizeof line, "path tracer %4lld spp: %.3f s, relMSE %.4g", spp, st.seconds, r.curve.back().metrics.relMse);
+        say(line);
+    }
+
+    if (settings.referenceImage.empty()) {
+        r.referenceNoise = referenceNoise(r.curve, settings.referenceSpp);
+        char line[200];
+        std::snprintf(line, sizeof line, "reference noise: about %.3g of every relMSE against it (from the curve's %d spp point)",
+                      r.referenceNoise, r.curve.empty() ? 0 : r.curve.back().spp);
         say(line);
     }
 

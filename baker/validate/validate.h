@@ -110,6 +110,9 @@ struct ValidationResult {
     std::vector<CurvePoint> curve;
     MethodResult neural;
     std::optional<MethodResult> baseline;
+    // The relMSE the reference's own Monte Carlo noise adds to every figure measured against it (each image
+    // here is smooth or independent of it): referenceNoise(curve, spp); < 0 when unknown (a given reference).
+    double referenceNoise = -1.0;
     ShFitStats baselineFit;
     glm::uvec3 baselineProbes{0};
     size_t baselineTrainingSamples = 0;
@@ -128,6 +131,13 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
 // (bad reference file, evaluation failure) and IoError (cache write).
 ValidationResult runValidation(const Scene& scene, const std::string& scenePath, NradAsset asset, const std::string& assetPath,
                                const ValidateSettings& settings, const std::function<void(const std::string&)>& log = {});
+
+// The relMSE a reference of `referenceSpp` paths per pixel adds through its own noise, from the convergence
+// curve's last point: against the reference, an independent N-spp render of the same estimator measures
+// c / N + c / referenceSpp (its noise and the reference's; relMSE's denominator taken as fixed), so the
+// reference's share is relMSE(N) N / (N + referenceSpp). An estimate: the curve's highest spp is the most
+// nearly in that 1 / spp regime. 0 for an empty curve.
+double referenceNoise(const std::vector<CurvePoint>& curve, int referenceSpp);
 
 // The equal-error time on a convergence curve (see MethodResult); `extrapolated` says whether the value
 // lies outside the curve.

@@ -210,6 +210,21 @@ TEST(Validate, EqualErrorTimeInterpolatesLogLog) {
     EXPECT_TRUE(extrapolated);
 }
 
+TEST(Validate, ReferenceNoiseIsTheReferencesShareOfTheCurve) {
+    // A path tracer of relMSE c / spp against the truth, measured against a reference of M spp: c / N + c / M.
+    const double c = 1.5, M = 512.0;
+    std::vector<CurvePoint> curve;
+    for (int k = 0; k < 9; ++k) {
+        CurvePoint p;
+        p.spp = 1 << k;
+        p.metrics.relMse = c / p.spp + c / M;
+        curve.push_back(p);
+    }
+    EXPECT_NEAR(referenceNoise(curve, int(M)), c / M, 1e-12);
+    EXPECT_NEAR(referenceNoise(curve, 4096), (c / 256.0 + c / M) * 256.0 / (256.0 + 4096.0), 1e-12);  // another M: as measured
+    EXPECT_EQ(referenceNoise({}, 512), 0.0);
+}
+
 TEST(Report, BakeCurveAggregatesVoxelsAndPlotsAreSvg) {
     nlohmann::json stats = {{"voxels",
                              {{{"curve_epoch_seconds_relmse", {{0, 0.1, 1.0}, {10, 0.2, 0.5}}}},
