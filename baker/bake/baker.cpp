@@ -158,6 +158,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     LightSelector selector(lights, scene.bounds, nee);
     PathTracer tracer(scene, accel, lights, &selector);
     tracer.setExcludeEngineDrawnDirect(true);  // mixed lighting: the asset holds those lights' indirect light only
+    tracer.setRouletteThreshold(kTrainingRouletteThreshold);
     VoxelGrid grid(scene.bounds, settings.grid);
     SurfacePieces pieces(scene.mesh, grid);
     result.surfaceArea = pieces.totalArea();

@@ -210,7 +210,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         prevP = si.p;
         std::swap(probs, prevProbs);
         if (depth + 1 >= kRouletteStart && cutDepth == 0) {
-            float q = std::min(1.0f, maxComponent(beta));
+            float q = std::min(1.0f, maxComponent(beta) / rouletteThreshold_);
             if (uRoulette >= q) break;
             beta /= q;
         }

@@ -86,6 +86,13 @@ public:
     // For training targets; references keep everything.
     void setExcludeEngineDrawnDirect(bool exclude) { excludeEngineDrawn_ = exclude; }
 
+    // Russian roulette from the third segment on keeps a path with probability min(1, throughput / t) and
+    // divides the throughput by it. t = 1 (renders): a path's weight stays near 1 and its length is geometric
+    // in the albedo. A smaller t (training targets) follows every path deterministically until its
+    // throughput falls below t, so the long multiple-bounce part of bright closed scenes is summed instead of
+    // sampled (lower variance per path, longer paths): unbiased either way.
+    void setRouletteThreshold(float t) { rouletteThreshold_ = t; }
+
     // One estimate of the radiance arriving at `origin` from direction `direction` (i.e. leaving the
     // first surface hit towards origin). maxDepth counts path segments including this first ray.
     // If `record` is given, every ray traced is appended to it (benchmarks).
@@ -129,6 +136,7 @@ private:
     const Accel& accel_;
     const LightSampler& lights_;
     const LightSelector* selector_;
+    float rouletteThreshold_ = 1.0f;
     bool excludeEngineDrawn_ = false;
 };
 

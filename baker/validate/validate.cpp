@@ -439,6 +439,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         // Trained like the asset's networks: without the direct light of lights the engine draws.
         PathTracer baselineTracer(scene, accel, lights);
         baselineTracer.setExcludeEngineDrawnDirect(true);
+        baselineTracer.setRouletteThreshold(kTrainingRouletteThreshold);
         std::vector<TrainingSample> samples = generateTrainingSamples(scene, baselineTracer, grid, pieces, ss, sst);
         // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
         // probes store lighting and multiply by the albedo), so both are shaded alike.

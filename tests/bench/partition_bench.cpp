@@ -233,6 +233,7 @@ int main(int argc, char** argv) {
     Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
+    tracer.setRouletteThreshold(kTrainingRouletteThreshold);  // as the baker traces its targets
     VoxelGrid grid(scene.bounds, glm::uvec3(8));  // only for the per-cell floor of samples
     SurfacePieces pieces(scene.mesh, grid);
     const format::Grid& g = grid.grid();
