@@ -113,9 +113,9 @@ public:
                                 RayCounters& counters) const;
 
     // Whether a viewer can ever ask for the radiance leaving si towards si.wo: false when the ray from si.p
-    // along wo first meets the back of a single-sided surface, i.e. the viewer would stand inside a closed
-    // object or behind a surface lying on this one (the floor under a box, the ceiling 0.1 mm above a light
-    // panel). One ray.
+    // along wo first meets the back of an opaque single-sided surface, i.e. the viewer would stand inside a
+    // closed object or behind a surface lying on this one (the floor under a box, the ceiling 0.1 mm above a
+    // light panel). Surfaces seen through (transmission, alpha blending) hide nothing. One ray.
     bool viewable(const SurfaceInteraction& si) const;
 
     // Renders an image; progress(fraction) is called from worker threads as tiles finish.

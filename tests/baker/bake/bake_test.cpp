@@ -433,6 +433,13 @@ TEST(Bake, PointsNoViewerSeesAreNotTrained) {
     LightSampler lights2(twoSided);
     PathTracer tracer2(twoSided, accel2, lights2);
     EXPECT_TRUE(viewable({0.0f, 0.0f, 0.0f}, {0, 0, 1}, twoSided, tracer2));
+    // Nor a lid one sees through (a window pane's back, say).
+    Scene glass = planeWithALid(false);
+    glass.materials[1].transmission = 1.0f;
+    Accel accel3(glass);
+    LightSampler lights3(glass);
+    PathTracer tracer3(glass, accel3, lights3);
+    EXPECT_TRUE(viewable({0.0f, 0.0f, 0.0f}, {0, 0, 1}, glass, tracer3));
 
     // The bake drops the hidden points: the plane under the lid is a fifth of the surface (1 of 5 m^2).
     BakeSettings s = smallSettings();
