@@ -1,4 +1,5 @@
 // `nrad validate`: the asset against a path-traced reference, error against run time, an HTML report.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -119,6 +120,24 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         for (size_t k = 0; k < n.byRegion.size(); ++k)
             std::printf("%s %s %.3g (%.1f%%)", k ? "," : "", kRegionNames[k], n.byRegion[k].relMse, 100.0 * n.byRegion[k].shareOfImage);
         std::printf("; seams: relMSE across shared faces %.3g at %zu points\n", r.seams.relMse, r.seams.points);
+        // By material, largest neural share first (the five largest; report.json has them all).
+        std::vector<size_t> order;
+        for (size_t k = 0; k < r.materialNames.size() && k < n.byMaterial.size(); ++k)
+            if (n.byMaterial[k].pixels > 0) order.push_back(k);
+        std::stable_sort(order.begin(), order.end(),
+                         [&](size_t a, size_t b) { return n.byMaterial[a].shareOfImage > n.byMaterial[b].shareOfImage; });
+        if (!order.empty()) {
+            std::printf("  by material (relMSE, share%s):", r.baseline ? "; SH probes' relMSE" : "");
+            for (size_t i = 0; i < order.size() && i < 5; ++i) {
+                const size_t k = order[i];
+                std::printf("%s %s %.3g (%.1f%%", i ? "," : "", r.materialNames[k].c_str(), n.byMaterial[k].relMse,
+                            100.0 * n.byMaterial[k].shareOfImage);
+                if (r.baseline && k < r.baseline->byMaterial.size()) std::printf("; %.3g", r.baseline->byMaterial[k].relMse);
+                std::printf(")");
+            }
+            if (order.size() > 5) std::printf(", %zu more", order.size() - 5);
+            std::printf("\n");
+        }
     }
     std::printf("  path tracer at equal error: %.3g s%s = %.3gx the network evaluation, %.3gx the whole neural render\n",
                 r.neural.equalErrorSeconds, r.neural.equalErrorExtrapolated ? " (extrapolated)" : "", r.neural.speedupOverEvaluation,

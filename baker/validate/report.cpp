@@ -241,6 +241,19 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
                   {"mean_relative_jump", num(r.seams.meanRelativeJump)},
                   {"evaluations_per_point", num(r.seams.evaluationsPerPoint)},
                   {"blended_share", num(r.seams.blendedShare)}};
+    // Per material (the surface each pixel's centre sees): where a method's error lives by what is shaded there.
+    nlohmann::json materials = nlohmann::json::array();
+    for (size_t k = 0; k < r.materialNames.size() && k < r.neural.byMaterial.size(); ++k) {
+        if (r.neural.byMaterial[k].pixels == 0) continue;
+        auto entry = [](const RegionError& e) {
+            return nlohmann::json{{"relmse", num(e.relMse)}, {"share_of_image_relmse", num(e.shareOfImage)}};
+        };
+        nlohmann::json m = {{"material", r.materialNames[k]}, {"index", k}, {"pixels", r.neural.byMaterial[k].pixels},
+                            {"neural", entry(r.neural.byMaterial[k])}};
+        if (r.baseline && k < r.baseline->byMaterial.size()) m["baseline"] = entry(r.baseline->byMaterial[k]);
+        materials.push_back(m);
+    }
+    j["by_material"] = materials;
     if (r.baseline) {
         j["baseline"] = methodJson(*r.baseline);
         j["baseline"]["probes"] = {r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z};
@@ -398,7 +411,32 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     };
     whereRow("neural", r.neural);
     if (r.baseline) whereRow("SH probes", *r.baseline);
-    h << "</table>\n<p>Seams: at " << r.seams.points << " surface points on faces shared by two occupied voxels, the asset's "
+    h << "</table>\n";
+    // By material, the neural share first: which surfaces carry the error, and how the probes fare on them.
+    {
+        std::vector<size_t> order;
+        for (size_t k = 0; k < r.materialNames.size() && k < r.neural.byMaterial.size(); ++k)
+            if (r.neural.byMaterial[k].pixels > 0) order.push_back(k);
+        std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+            return r.neural.byMaterial[a].shareOfImage > r.neural.byMaterial[b].shareOfImage;
+        });
+        h << "<table><tr><th>material</th><th>pixels</th><th>neural relMSE (share)</th>";
+        if (r.baseline) h << "<th>SH probes relMSE (share)</th><th>SH / neural</th>";
+        h << "</tr>\n";
+        for (size_t k : order) {
+            const RegionError& e = r.neural.byMaterial[k];
+            h << "<tr><td>" << escape(r.materialNames[k]) << "</td><td>" << e.pixels << "</td><td>" << fmt("%.3g", e.relMse) << " ("
+              << fmt("%.1f%%", 100.0 * e.shareOfImage) << ")</td>";
+            if (r.baseline && k < r.baseline->byMaterial.size()) {
+                const RegionError& b = r.baseline->byMaterial[k];
+                h << "<td>" << fmt("%.3g", b.relMse) << " (" << fmt("%.1f%%", 100.0 * b.shareOfImage) << ")</td><td>"
+                  << (e.relMse > 0.0 ? fmt("%.3g", b.relMse / e.relMse) : std::string("-")) << "</td>";
+            }
+            h << "</tr>\n";
+        }
+        h << "</table>\n";
+    }
+    h << "<p>Seams: at " << r.seams.points << " surface points on faces shared by two occupied voxels, the asset's "
       << "radiance on either side differs by a relMSE of " << fmt("%.3g", r.seams.relMse) << " (mean relative jump "
       << fmt("%.3g", r.seams.meanRelativeJump) << "). Networks evaluated per visible surface point: "
       << fmt("%.3g", r.seams.evaluationsPerPoint) << " (" << fmt("%.1f", 100.0 * r.seams.blendedShare)

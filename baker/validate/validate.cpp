@@ -39,11 +39,12 @@ void fnv(uint64_t& h, const void* data, size_t bytes) {
 
 // Scores a first-hit render and splits its wall time by the thread-time shares.
 void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference, float exposure,
-           const std::vector<int>& regionOfPixel) {
+           const std::vector<int>& regionOfPixel, const std::vector<int>& materialOfPixel, int materialCount) {
     m.metrics = compareImages(m.image, reference, exposure);
     m.byDecade = relMseByDecade(m.image, reference);
     m.distribution = errorDistribution(m.image, reference);
     m.byRegion = relMseByRegion(m.image, reference, regionOfPixel, kRegionCount);
+    m.byMaterial = relMseByRegion(m.image, reference, materialOfPixel, materialCount);
     m.seconds = st.seconds;
     double threadTime = st.visibilitySeconds + st.evaluationSeconds;
     double share = threadTime > 0.0 ? st.evaluationSeconds / threadTime : 0.0;
@@ -63,6 +64,7 @@ FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera
     h.width = width;
     h.height = height;
     h.voxel.assign(n, -1);
+    h.material.assign(n, -1);
     h.emitter.assign(n, 0);
     h.points.assign(n, glm::vec3(std::numeric_limits<float>::quiet_NaN()));
     h.normals.assign(n, glm::vec3(0.0f));
@@ -78,6 +80,7 @@ FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera
                 const size_t i = size_t(y) * size_t(width) + size_t(x);
                 const float p[3] = {si.p.x, si.p.y, si.p.z};
                 h.voxel[i] = partition.cellOf(p);
+                h.material[i] = int(scene.mesh.materialIds[hit.triangle]);
                 h.emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
                 h.points[i] = si.p;
                 h.normals[i] = si.ns;
@@ -367,6 +370,9 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     }
     const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, partition);
     r.regionOfPixel = pixelRegions(hits);
+    r.materialOfPixel = hits.material;
+    for (size_t k = 0; k < scene.materials.size(); ++k)
+        r.materialNames.push_back(scene.materials[k].name.empty() ? "material " + std::to_string(k) : scene.materials[k].name);
     r.seams = seamFigure(hits, partition, asset);
     {
         char line[320];
@@ -386,7 +392,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         NeuralRenderStats st;
         if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
             throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
-        score(m, st, r.reference, settings.exposure, r.regionOfPixel);
+        score(m, st, r.reference, settings.exposure, r.regionOfPixel, r.materialOfPixel, int(r.materialNames.size()));
         // The networks' weights and, for an adaptive asset, its tree's nodes (8 bytes each).
         m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4) +
                   partition.tree.size() * 8;
@@ -464,7 +470,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         m.name = "sh-probes";
         NeuralRenderStats st;
         renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, fh, m.image, &st);
-        score(m, st, r.reference, settings.exposure, r.regionOfPixel);
+        score(m, st, r.reference, settings.exposure, r.regionOfPixel, r.materialOfPixel, int(r.materialNames.size()));
         m.bytes = probes.bytes();
         equalError(m, r.curve);
         r.baseline = std::move(m);

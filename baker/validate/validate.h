@@ -54,6 +54,7 @@ struct MethodResult {
     std::vector<DecadeError> byDecade;
     ErrorDistribution distribution;
     std::vector<RegionError> byRegion;  // kRegionNames order
+    std::vector<RegionError> byMaterial;  // the scene's materials in order, by the material each pixel's centre sees
     // The path tracer's time to reach this image's relMSE on the convergence curve (log-log interpolation;
     // extrapolated with relMSE ~ 1/time outside it) and that time over this render's times.
     double equalErrorSeconds = 0.0;
@@ -86,6 +87,7 @@ struct SeamFigure {
 struct FirstHits {
     int width = 0, height = 0;
     std::vector<int64_t> voxel;
+    std::vector<int> material;  // index into Scene::materials, -1 where the pixel's centre sees no surface
     std::vector<uint8_t> emitter;
     std::vector<glm::vec3> points, normals, directions;
 };
@@ -120,6 +122,8 @@ struct ValidationResult {
     double baselineSeconds = 0.0;  // sampling + fit
     nlohmann::json assetMetadata;  // parsed META, or null
     std::vector<int> regionOfPixel;  // kRegionNames index of each pixel
+    std::vector<int> materialOfPixel;  // FirstHits::material
+    std::vector<std::string> materialNames;  // the scene's, in order ("material N" where unnamed)
     SeamFigure seams;
 };
 

@@ -331,6 +331,25 @@ TEST(CliValidate, ReportWithCachedReferenceThatRendersInChromium) {
     EXPECT_GT(j["neural"]["bytes"].get<size_t>(), j["baseline"]["bytes"].get<size_t>() - 1);  // baseline fits in the same bytes
     EXPECT_TRUE(j["comparison"]["better_overall"] == "neural" || j["comparison"]["better_overall"] == "sh-probes");
     EXPECT_GT(j["bake"]["training_curve"].size(), 1u);
+    // By material: the box's four, their pixels those that see a surface (all but the frame of the open front
+    // face), the light's exactly the emitter region's, and the neural shares most of the image's relMSE (the
+    // frame's anti-aliased edges hold the rest).
+    EXPECT_NE(r.output.find("by material"), std::string::npos) << r.output;
+    ASSERT_EQ(j["by_material"].size(), 4u) << j["by_material"].dump();
+    size_t pixels = 0;
+    double share = 0.0;
+    for (const auto& m : j["by_material"]) {
+        pixels += m["pixels"].get<size_t>();
+        share += m["neural"]["share_of_image_relmse"].get<double>();
+        EXPECT_TRUE(m.contains("baseline"));
+        if (m["material"] == "light") {
+            EXPECT_EQ(m["pixels"], j["neural"]["by_region"][0]["pixels"]);
+        }
+    }
+    EXPECT_GT(pixels, 40u * 40u * 8 / 10);
+    EXPECT_LT(pixels, 40u * 40u);
+    EXPECT_GT(share, 0.9);
+    EXPECT_LE(share, 1.0 + 1e-9);
     for (const char* file : {"report.html", "reference.exr", "reference.png", "neural.exr", "neural.png", "neural-sqdiff.png",
                              "neural-relerr.png", "sh-probes.png", "winner.png", "error-vs-time.svg", "bake-training.svg",
                              "convergence.csv"})

@@ -140,6 +140,49 @@ TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
         for (int x = 0; x < 64; ++x) EXPECT_EQ(region[size_t(y * 64 + x)], x == 31 || x == 32 ? 1 : 2) << x << ", " << y;
 }
 
+TEST(Validate, PixelsKnowTheirMaterialAndItsShareOfTheError) {
+    // The lit plane's two triangles get two materials: triangle 0 holds the points with x > y. Every pixel's
+    // first hit names the material of the triangle it lies on, and an image wrong only on material 1's pixels
+    // puts all of its relMSE there.
+    Scene scene = test::makeLitPlane(0.5f, 1.0f);
+    scene.materials.push_back(scene.materials[0]);
+    scene.materials[1].name = "second";
+    scene.mesh.materialIds = {0, 1};
+    VoxelGrid grid(scene.bounds, glm::uvec3(1, 1, 1));
+    format::Asset a;
+    a.grid = grid.grid();
+    Accel accel(scene);
+    const FirstHits hits = firstHits(scene, accel, scene.cameras[0], 32, 32, eval::Partition(a));
+    Image ref = constant(32, 32, glm::vec3(1.0f)), img = ref;
+    size_t second = 0;
+    for (size_t i = 0; i < hits.material.size(); ++i) {
+        const glm::vec3 p = hits.points[i];
+        ASSERT_TRUE(std::isfinite(p.x)) << i;  // the plane fills the view
+        if (std::abs(p.x - p.y) > 1e-3f) {
+            EXPECT_EQ(hits.material[i], p.x > p.y ? 0 : 1) << p.x << ", " << p.y;
+        }
+        if (hits.material[i] == 1) {
+            img.pixels[i] = glm::vec3(2.0f);
+            ++second;
+        }
+    }
+    EXPECT_GT(second, 400u);
+    EXPECT_LT(second, 624u);
+    std::vector<RegionError> m = relMseByRegion(img, ref, hits.material, 2);
+    EXPECT_EQ(m[0].pixels + m[1].pixels, 32u * 32u);
+    EXPECT_EQ(m[1].pixels, second);
+    EXPECT_EQ(m[0].relMse, 0.0);
+    EXPECT_NEAR(m[1].relMse, 1.0 / 1.01, 1e-6);
+    EXPECT_NEAR(m[1].shareOfImage, 1.0, 1e-9);
+    // The sky: no material.
+    Scene empty = scene;
+    empty.cameras[0].position = glm::vec3(0, 0, -5);  // looking away from the plane
+    const FirstHits none = firstHits(empty, accel, empty.cameras[0], 8, 8, eval::Partition(a));
+    for (int k : none.material) {
+        EXPECT_EQ(k, -1);
+    }
+}
+
 TEST(ShProbes, FitRecoversAnExactProbeField) {
     ShProbeGrid truth;
     truth.dims = {3, 2, 2};
