@@ -121,11 +121,7 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             std::printf("%s %s %.3g (%.1f%%)", k ? "," : "", kRegionNames[k], n.byRegion[k].relMse, 100.0 * n.byRegion[k].shareOfImage);
         std::printf("; seams: relMSE across shared faces %.3g at %zu points\n", r.seams.relMse, r.seams.points);
         // By material, largest neural share first (the five largest; report.json has them all).
-        std::vector<size_t> order;
-        for (size_t k = 0; k < r.materialNames.size() && k < n.byMaterial.size(); ++k)
-            if (n.byMaterial[k].pixels > 0) order.push_back(k);
-        std::stable_sort(order.begin(), order.end(),
-                         [&](size_t a, size_t b) { return n.byMaterial[a].shareOfImage > n.byMaterial[b].shareOfImage; });
+        const std::vector<size_t> order = materialsByNeuralShare(r);
         if (!order.empty()) {
             std::printf("  by material (relMSE, share%s):", r.baseline ? "; SH probes' relMSE" : "");
             for (size_t i = 0; i < order.size() && i < 5; ++i) {

@@ -243,11 +243,11 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
                   {"blended_share", num(r.seams.blendedShare)}};
     // Per material (the surface each pixel's centre sees): where a method's error lives by what is shaded there.
     nlohmann::json materials = nlohmann::json::array();
+    auto entry = [](const RegionError& e) {
+        return nlohmann::json{{"relmse", num(e.relMse)}, {"share_of_image_relmse", num(e.shareOfImage)}};
+    };
     for (size_t k = 0; k < r.materialNames.size() && k < r.neural.byMaterial.size(); ++k) {
         if (r.neural.byMaterial[k].pixels == 0) continue;
-        auto entry = [](const RegionError& e) {
-            return nlohmann::json{{"relmse", num(e.relMse)}, {"share_of_image_relmse", num(e.shareOfImage)}};
-        };
         nlohmann::json m = {{"material", r.materialNames[k]}, {"index", k}, {"pixels", r.neural.byMaterial[k].pixels},
                             {"neural", entry(r.neural.byMaterial[k])}};
         if (r.baseline && k < r.baseline->byMaterial.size()) m["baseline"] = entry(r.baseline->byMaterial[k]);
@@ -414,12 +414,7 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
     h << "</table>\n";
     // By material, the neural share first: which surfaces carry the error, and how the probes fare on them.
     {
-        std::vector<size_t> order;
-        for (size_t k = 0; k < r.materialNames.size() && k < r.neural.byMaterial.size(); ++k)
-            if (r.neural.byMaterial[k].pixels > 0) order.push_back(k);
-        std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-            return r.neural.byMaterial[a].shareOfImage > r.neural.byMaterial[b].shareOfImage;
-        });
+        const std::vector<size_t> order = materialsByNeuralShare(r);
         h << "<table><tr><th>material</th><th>pixels</th><th>neural relMSE (share)</th>";
         if (r.baseline) h << "<th>SH probes relMSE (share)</th><th>SH / neural</th>";
         h << "</tr>\n";

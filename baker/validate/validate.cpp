@@ -5,6 +5,7 @@
 #include <limits>
 #include <tbb/parallel_for.h>
 #include <nrad/eval.h>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -239,6 +240,15 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
     return hex;
+}
+
+std::vector<size_t> materialsByNeuralShare(const ValidationResult& r) {
+    const std::vector<RegionError>& m = r.neural.byMaterial;
+    std::vector<size_t> order;
+    for (size_t k = 0; k < r.materialNames.size() && k < m.size(); ++k)
+        if (m[k].pixels > 0) order.push_back(k);
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return m[a].shareOfImage > m[b].shareOfImage; });
+    return order;
 }
 
 double referenceNoise(const std::vector<CurvePoint>& curve, int referenceSpp) {

@@ -136,6 +136,10 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
 ValidationResult runValidation(const Scene& scene, const std::string& scenePath, NradAsset asset, const std::string& assetPath,
                                const ValidateSettings& settings, const std::function<void(const std::string&)>& log = {});
 
+// The scene's materials some pixel sees, largest share of the neural image's relMSE first (ties in material
+// order): the order the summary and the HTML report list them in.
+std::vector<size_t> materialsByNeuralShare(const ValidationResult& r);
+
 // The relMSE a reference of `referenceSpp` paths per pixel adds through its own noise, from the convergence
 // curve's last point: against the reference, an independent N-spp render of the same estimator measures
 // c / N + c / referenceSpp (its noise and the reference's; relMSE's denominator taken as fixed), so the
