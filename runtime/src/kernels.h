@@ -129,18 +129,32 @@ struct BatchIo {
 };
 
 // A kd-tree partition as the block driver locates whole vectors in it (the grid above holds the box, the
-// lattice factors and, in `dense`, the leaf -> network table). A vector whose first point's leaf holds every
-// point of the vector away from every blending band is evaluated in registers; any other is taken point by
-// point (BlockDriver). nodes: 3 words per node (format::TreeNode: axis, split, child); starts: eval::buildTreeStarts' table.
+// lattice factors and, in `dense`, the leaf -> network table), built at load from eval::Partition (not part of
+// the asset's contract: it finds the leaves eval::treeSupports finds). Node references are "tagged": an inner
+// node's index, or -1 - leaf for a leaf, so that a descent ends on reaching a leaf without reading it.
+// A vector whose points all lie in one leaf, away from every blending band, is evaluated in registers; any
+// other is taken point by point (BlockDriver).
 struct LocateTree {
-    const uint32_t* nodes;  // null: the grid
-    const uint32_t* starts;
+    // Per node of the format's tree (leaves' entries unused), 3 words: its axis, its lower child and its upper
+    // child, tagged; and its split, as a float.
+    const int32_t* nodes;
+    const float* splits;
+    const int32_t* starts;  // eval::buildTreeStarts' table, tagged
     uint32_t startDims[3];
     float startScale[3];
     // Per leaf, 12 floats: the open box of lattice coordinates in which a point has this leaf alone with weight 1
     // (lo[3], hi[3]: inside the leaf and every ancestor's blending band, less a rounding margin), and the
-    // leaf's lattice box as eval::localInBox takes it (float(lo)[3], float(hi - lo)[3]).
+    // leaf's lattice box as eval::localInBox takes it (float(lo)[3], float(hi - lo)[3]). Null: the grid.
     const float* leaves;
+    // Small trees: the rectilinear grid of every split plane, a table that gives each point's leaf in two steps
+    // (splits lie on the lattice, so a lattice voxel lies in one leaf and on one side of every plane). Per
+    // lattice voxel along each axis, that axis's term of the cell index (axis 0 from rectAxis[0], axis 1 from
+    // rectAxis[rectOffset[1]], axis 2 from rectAxis[rectOffset[2]]), summed; rectLeaves: each cell's leaf.
+    // Null when the table would pass kMaxRectCells (then the start table and the descent).
+    const int32_t* rectAxis;
+    const int32_t* rectLeaves;
+    uint32_t rectOffset[3];
+    static constexpr size_t kMaxRectCells = size_t(1) << 16;
 };
 
 struct BlockContext {
@@ -175,6 +189,9 @@ uint64_t blendedBlocksSoFar();
 uint64_t gbufferBlocksSoFar();
 // Blocks of kd-tree assets located and evaluated in registers since the process started (the same purpose).
 uint64_t treeBlocksSoFar();
+// The most cells of a kd-tree's rectilinear table (LocateTree) for assets loaded from now on; tests set 0 to
+// run the start table's descent on small trees (default LocateTree::kMaxRectCells).
+void setMaxRectCells(size_t cells);
 
 // The shading contract's flags (format::kFlagScatteredRadiance, format::kFlagDemodulated) as the kernels see them.
 constexpr uint32_t kContentScattered = 1u, kContentDemodulated = 2u;

@@ -44,6 +44,10 @@ struct NradAsset_ {
     std::vector<int32_t> denseLookup;  // cell -> network, -1 = empty; used when the grid is small enough
     eval::Partition partition;  // how a point finds its cells (the grid, or the kd-tree's leaves), its band
     std::vector<float> treeLeaves;  // kd-tree assets: rt::LocateTree::leaves (treeLeafBoxes)
+    std::vector<int32_t> treeNodes, treeStarts;  // kd-tree assets: rt::LocateTree::nodes and starts (tagTree)
+    std::vector<float> treeSplits;  // and rt::LocateTree::splits
+    std::vector<int32_t> rectAxis, rectLeaves;  // small kd-trees: rt::LocateTree's rectilinear table (rectilinearTable)
+    uint32_t rectOffset[3] = {0, 0, 0};
     std::vector<float> scales;  // per network: the voxel's output scale
     std::atomic<int> kernel{NRAD_KERNEL_AUTO};  // nradSetAssetKernel; AUTO: the process-wide choice
 };
@@ -75,6 +79,7 @@ std::atomic<int> gKernel{NRAD_KERNEL_AUTO};
 std::atomic<uint64_t> gBlendedBlocks{0};
 std::atomic<uint64_t> gGBufferBlocks{0};
 std::atomic<uint64_t> gTreeBlocks{0};
+std::atomic<size_t> gMaxRectCells{rt::LocateTree::kMaxRectCells};
 
 NradKernel activeKernel() {
     int k = gKernel.load(std::memory_order_relaxed);
@@ -171,6 +176,68 @@ std::vector<float> treeLeafBoxes(const eval::Partition& part) {
     return out;
 }
 
+// rt::LocateTree::nodes, splits and starts of a kd-tree partition: every node reference tagged (an inner
+// node's index, or -1 - leaf).
+void tagTree(const eval::Partition& part, std::vector<int32_t>& nodes, std::vector<float>& splits, std::vector<int32_t>& starts) {
+    const std::vector<format::TreeNode>& tree = part.tree;
+    auto tag = [&](uint32_t n) {
+        return tree[n].axis == format::kTreeLeaf ? -1 - int32_t(tree[n].child) : int32_t(n);
+    };
+    nodes.assign(3 * tree.size(), 0);
+    splits.assign(tree.size(), 0.0f);
+    for (size_t i = 0; i < tree.size(); ++i) {
+        if (tree[i].axis == format::kTreeLeaf) continue;
+        nodes[3 * i] = int32_t(tree[i].axis);
+        nodes[3 * i + 1] = tag(tree[i].child);
+        nodes[3 * i + 2] = tag(tree[i].child + 1);
+        splits[i] = float(tree[i].split);
+    }
+    starts.resize(part.starts.size());
+    for (size_t c = 0; c < starts.size(); ++c) starts[c] = tag(part.starts[c]);
+}
+
+// rt::LocateTree's rectilinear table of a kd-tree partition (every distinct split of each axis cuts the
+// lattice; each cell of the product lies in one leaf, found by descending from its lowest voxel with the
+// descent's own test), or false, leaving both empty, past kMaxRectCells cells (setMaxRectCells).
+bool rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, std::vector<int32_t>& leaves, uint32_t offset[3]) {
+    axis.clear();
+    leaves.clear();
+    std::vector<std::vector<uint32_t>> cuts(3);  // per axis: the lower voxel of each interval
+    for (int k = 0; k < 3; ++k) cuts[k].push_back(0);
+    for (const format::TreeNode& n : part.tree)
+        if (n.axis != format::kTreeLeaf) cuts[n.axis].push_back(n.split);
+    size_t cells = 1;
+    for (int k = 0; k < 3; ++k) {
+        std::sort(cuts[k].begin(), cuts[k].end());
+        cuts[k].erase(std::unique(cuts[k].begin(), cuts[k].end()), cuts[k].end());
+        cells *= cuts[k].size();
+        if (cells > gMaxRectCells.load(std::memory_order_relaxed)) return false;
+    }
+    const uint32_t* dims = part.grid.dims;
+    int32_t stride = 1;
+    for (int k = 0; k < 3; ++k) {
+        offset[k] = uint32_t(axis.size());
+        for (uint32_t v = 0, interval = 0; v < dims[k]; ++v) {
+            while (interval + 1 < cuts[k].size() && cuts[k][interval + 1] <= v) ++interval;
+            axis.push_back(int32_t(interval) * stride);
+        }
+        stride *= int32_t(cuts[k].size());
+    }
+    leaves.resize(cells);
+    for (size_t z = 0; z < cuts[2].size(); ++z)
+        for (size_t y = 0; y < cuts[1].size(); ++y)
+            for (size_t x = 0; x < cuts[0].size(); ++x) {
+                const uint32_t voxel[3] = {cuts[0][x], cuts[1][y], cuts[2][z]};
+                uint32_t at = 0;
+                while (part.tree[at].axis != format::kTreeLeaf) {
+                    const format::TreeNode& n = part.tree[at];
+                    at = float(voxel[n.axis]) >= float(n.split) ? n.child + 1 : n.child;
+                }
+                leaves[(z * cuts[1].size() + y) * cuts[0].size() + x] = int32_t(part.tree[at].child);
+            }
+    return true;
+}
+
 NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, char* message, size_t messageSize) {
     if (!out) return NRAD_ERROR_INVALID_ARGUMENT;
     *out = nullptr;
@@ -206,7 +273,13 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
     for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
     a->partition = eval::Partition(a->asset);
     std::vector<format::TreeNode>().swap(a->asset.tree);  // the partition holds it
-    if (!a->partition.tree.empty()) a->treeLeaves = treeLeafBoxes(a->partition);
+    if (!a->partition.tree.empty()) {
+        a->treeLeaves = treeLeafBoxes(a->partition);
+        tagTree(a->partition, a->treeNodes, a->treeSplits, a->treeStarts);
+        uint32_t offset[3];
+        if (rectilinearTable(a->partition, a->rectAxis, a->rectLeaves, offset))
+            for (int k = 0; k < 3; ++k) a->rectOffset[k] = offset[k];
+    }
     // A dense cell -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->partition.cells;
     if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
@@ -426,18 +499,20 @@ void evaluateTile(const NradAsset_& a, size_t count, const rt::BatchIo& v, Scrat
         ctx.grid.band = a.partition.band;
         ctx.grid.dense = a.denseLookup.data();
         if (!a.partition.tree.empty()) {
-            static_assert(sizeof(format::TreeNode) == 12 && offsetof(format::TreeNode, axis) == 0 &&
-                              offsetof(format::TreeNode, split) == 4 && offsetof(format::TreeNode, child) == 8,
-                          "rt::LocateTree reads nodes as three words");
-            static_assert(format::kTreeLeaf == 3, "rt::LocateTree's leaf mark");
             const eval::TreeView view = a.partition.view();
-            ctx.tree.nodes = reinterpret_cast<const uint32_t*>(view.nodes);
-            ctx.tree.starts = view.starts;
+            ctx.tree.nodes = a.treeNodes.data();
+            ctx.tree.splits = a.treeSplits.data();
+            ctx.tree.starts = a.treeStarts.data();
             for (int k = 0; k < 3; ++k) {
                 ctx.tree.startDims[k] = view.startDims[k];
                 ctx.tree.startScale[k] = view.startScale[k];
             }
             ctx.tree.leaves = a.treeLeaves.data();
+            if (!a.rectLeaves.empty()) {
+                ctx.tree.rectAxis = a.rectAxis.data();
+                ctx.tree.rectLeaves = a.rectLeaves.data();
+                for (int k = 0; k < 3; ++k) ctx.tree.rectOffset[k] = a.rectOffset[k];
+            }
         }
         ctx.networks = first;
         ctx.paramsPerNetwork = a.paramsPerNetwork;
@@ -826,6 +901,7 @@ NradStatus guarded(F&& f) {
 uint64_t nrad::rt::blendedBlocksSoFar() { return gBlendedBlocks.load(std::memory_order_relaxed); }
 uint64_t nrad::rt::gbufferBlocksSoFar() { return gGBufferBlocks.load(std::memory_order_relaxed); }
 uint64_t nrad::rt::treeBlocksSoFar() { return gTreeBlocks.load(std::memory_order_relaxed); }
+void nrad::rt::setMaxRectCells(size_t cells) { gMaxRectCells.store(cells, std::memory_order_relaxed); }
 
 extern "C" {
 

@@ -458,39 +458,61 @@ inline void recordLanes(Deferred& def, uint8_t* flags, size_t first, unsigned ke
     }
 }
 
-// The leaf of lattice point t by the planes alone (the bands do not matter inside a leaf's open box): its
-// start-table cell's node, then down the tree.
-inline uint32_t treeLeafOf(const LocateTree& tree, const float t[3]) {
-    size_t at = 0;
-    for (int k = 2; k >= 0; --k) {
-        const int c = int(t[k] * tree.startScale[k]);
-        at = at * tree.startDims[k] + size_t(c < 0 ? 0 : (c >= int(tree.startDims[k]) ? int(tree.startDims[k]) - 1 : c));
+// Every lane's leaf (lattice coordinates t inside the lattice, dims: the lattice's) by the planes alone: from
+// the rectilinear table where the tree has one, else the lane's start-table cell's entry, then down the tree
+// while any lane is at an inner node, one level at a time. A point inside a leaf's open box has that leaf
+// alone (eval::treeSupports' descent takes the same side of every plane: t >= split there is t - split >= 0).
+template <class V>
+inline typename V::I treeLeaves(const LocateTree& tree, const uint32_t dims[3], const typename V::F t[3]) {
+    using F = typename V::F;
+    using I = typename V::I;
+    I at = V::seti(0);
+    if (tree.rectLeaves) {  // the rectilinear table: each lane's lattice voxel, its cell, its leaf
+        for (int k = 0; k < 3; ++k) {  // t >= 0 here, so the truncation is >= 0 (the grid's voxel coordinate)
+            const I c = V::mini(V::cvtTrunc(t[k]), V::seti(int(dims[k]) - 1));
+            at = V::addi(at, V::gatheri(tree.rectAxis + tree.rectOffset[k], c));
+        }
+        return V::gatheri(tree.rectLeaves, at);
     }
-    uint32_t node = tree.starts[at];
-    while (tree.nodes[3 * node] != 3u) {  // format::kTreeLeaf
-        const uint32_t* nd = tree.nodes + 3 * node;
-        node = t[nd[0]] >= float(nd[1]) ? nd[2] + 1 : nd[2];
+    for (int k = 2; k >= 0; --k) {  // t >= 0 here, so the truncation is >= 0
+        const I c = V::mini(V::cvtTrunc(V::mul(t[k], V::set1(tree.startScale[k]))), V::seti(int(tree.startDims[k]) - 1));
+        at = V::addi(V::mullo(at, V::seti(int(tree.startDims[k]))), c);
     }
-    return tree.nodes[3 * node + 2];
+    I node = V::gatheri(tree.starts, at);
+    const F zero = V::zero();
+    const I zeroi = V::seti(0), onei = V::seti(1), three = V::seti(3);
+    for (;;) {
+        const unsigned inner = V::geMask(V::cvtFloat(node), zero);
+        if (!inner) break;
+        // Four independent gathers per level (a finished lane reads node 0's), so that a level costs one
+        // gather's latency.
+        const I at1 = V::selecti(inner, node, zeroi), word = V::mullo(at1, three);
+        const I axis = V::gatheri(tree.nodes, word);
+        const F split = V::gatherf(tree.splits, at1);
+        const I lower = V::gatheri(tree.nodes + 1, word), upper = V::gatheri(tree.nodes + 2, word);
+        const F along = V::select(V::equalMask(axis, zeroi), t[0], V::select(V::equalMask(axis, onei), t[1], t[2]));
+        node = V::selecti(inner, V::selecti(V::geMask(along, split), upper, lower), node);
+    }
+    return V::addi(V::mullo(node, V::seti(-1)), V::seti(-1));  // the leaf: -1 - node (tagged)
 }
 
-// A block of valid points of a kd-tree asset (t: lattice coordinates, also as lanes): when the leaf of the first
-// point holds every point of the block with weight 1 (all of them inside the leaf's open box clear of blending
-// bands; LocateTree), that leaf's network over the whole vector, the position input exactly as
-// eval::treeSupports computes it. Returns false, writing nothing, otherwise (or when the leaf is empty).
+// The lanes of t inside `leaf`'s open box (LocateTree::leaves), as a mask.
 template <class V>
-bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const float lanes[3][V::W], const typename V::F n[3],
-                   const typename V::F d[3], typename V::F out[3]) {
-    using F = typename V::F;
-    constexpr unsigned all = V::W == 32 ? ~0u : (1u << V::W) - 1u;
-    const float first[3] = {lanes[0][0], lanes[1][0], lanes[2][0]};
-    const uint32_t leaf = treeLeafOf(ctx.tree, first);
-    const float* box = ctx.tree.leaves + 12 * size_t(leaf);
-    unsigned inside = all;
+inline unsigned insideLeaf(const LocateTree& tree, int32_t leaf, const typename V::F t[3]) {
+    const float* box = tree.leaves + 12 * size_t(leaf);
+    unsigned inside = ~0u;
     for (int k = 0; k < 3; ++k) inside &= ~V::leMask(t[k], V::set1(box[k])) & ~V::geMask(t[k], V::set1(box[3 + k]));
-    if (inside != all) return false;
+    return inside;
+}
+
+// The network of `leaf` (which has one) over a whole vector of points that have that leaf alone, the position
+// input exactly as eval::treeSupports computes it.
+template <class V>
+void evalTreeLeaf(const BlockContext& ctx, int32_t leaf, const typename V::F t[3], const typename V::F n[3],
+                  const typename V::F d[3], typename V::F out[3]) {
+    using F = typename V::F;
+    const float* box = ctx.tree.leaves + 12 * size_t(leaf);
     const int32_t network = ctx.grid.dense[leaf];
-    if (network < 0) return false;
     const F zero = V::zero();
     F in[kInputs] = {zero, zero, zero, n[0], n[1], n[2], d[0], d[1], d[2]};
     for (int k = 0; k < 3; ++k) in[k] = localInBox<V>(t[k], V::set1(box[6 + k]), V::set1(box[9 + k]));
@@ -499,49 +521,29 @@ bool evalTreeBlock(const BlockContext& ctx, const typename V::F t[3], const floa
     net.scale = ctx.scales[network];
     evalNetwork<V>(net, in, out);
     toRadiance<V>(net, out);
-    return true;
 }
 
-// A block of valid points of a kd-tree asset spread over several leaves (or not all clear of the bands): each
-// point inside its own leaf's open box, in a leaf with a network, joins the grouped pass with weight 1 (its
-// flag written), as a grid block spanning several voxels does; every other point goes to def.points, for the
-// general path to locate (bands, empty leaves). Every lane descends at once (treeLeafOf's start table and
-// planes, a gather per word and level), and the boxes and position inputs (eval::localInBox, clamped) are
-// computed for the whole vector.
+// A block of valid points of a kd-tree asset spread over several leaves (or not all clear of the bands), each
+// lane's leaf found (treeLeaves): each point with its leaf alone (inside the leaf's open box; on an unblended
+// tree, every point), in a leaf with a network, joins the grouped pass with weight 1 (its flag written), as a
+// grid block spanning several voxels does; every other point goes to def.points, for the general path to
+// locate (bands, empty leaves). The boxes and position inputs (eval::localInBox, clamped) are computed for the
+// whole vector.
 template <class V>
-void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], size_t first, Deferred& def, uint8_t* flags) {
-    using F = typename V::F;
-    using I = typename V::I;
+void recordTreeLanes(const BlockContext& ctx, const typename V::F t[3], typename V::I leaves, size_t first, Deferred& def,
+                     uint8_t* flags) {
     constexpr int W = V::W;
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
     const LocateTree& tree = ctx.tree;
-    const auto* words = reinterpret_cast<const int32_t*>(tree.nodes);
-    I at = V::seti(0);
-    for (int k = 2; k >= 0; --k) {  // t >= 0 here, so the truncation is >= 0
-        const I c = V::mini(V::cvtTrunc(V::mul(t[k], V::set1(tree.startScale[k]))), V::seti(int(tree.startDims[k]) - 1));
-        at = V::addi(V::mullo(at, V::seti(int(tree.startDims[k]))), c);
-    }
-    I node = V::gatheri(reinterpret_cast<const int32_t*>(tree.starts), at);
-    const I three = V::seti(3), one_i = V::seti(1);
-    for (;;) {
-        const I word = V::mullo(node, three);
-        const I axis = V::gatheri(words, word);
-        const unsigned leaf = V::equalMask(axis, three);
-        if (leaf == all) break;
-        const I split = V::gatheri(words + 1, word), child = V::gatheri(words + 2, word);
-        const F along = V::select(V::equalMask(axis, V::seti(0)), t[0], V::select(V::equalMask(axis, one_i), t[1], t[2]));
-        const unsigned upper = V::geMask(along, V::cvtFloat(split));
-        node = V::selecti(leaf, node, V::selecti(upper, V::addi(child, one_i), child));
-    }
-    const I leaves = V::gatheri(words + 2, V::mullo(node, three));
     alignas(64) int32_t networks[W];
     V::storei(networks, V::gatheri(ctx.grid.dense, leaves));
-    const I box = V::mullo(leaves, V::seti(12));
+    const typename V::I box = V::mullo(leaves, V::seti(12));
     unsigned inside = all;
     alignas(64) float local[3][W];
     for (int k = 0; k < 3; ++k) {
         const float* b = tree.leaves + k;
-        inside &= ~V::leMask(t[k], V::gatherf(b, box)) & ~V::geMask(t[k], V::gatherf(b + 3, box));
+        if (ctx.grid.band > 0.0f)
+            inside &= ~V::leMask(t[k], V::gatherf(b, box)) & ~V::geMask(t[k], V::gatherf(b + 3, box));
         V::store(local[k], localInBox<V>(t[k], V::gatherf(b + 6, box), V::gatherf(b + 9, box)));
     }
     recordLanes<V>(def, flags, first, inside, networks, local);
@@ -564,6 +566,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
     constexpr unsigned all = W == 32 ? ~0u : (1u << W) - 1u;
     const LocateGrid& g = ctx.grid;
     const F one = V::set1(1.0f), minusOne = V::set1(-1.0f), two = V::set1(2.0f);
+    int32_t lastLeaf = -1;  // kd-tree assets: the leaf of the last vector evaluated in registers
     for (size_t b = 0; b < blocks; ++b) {
         const size_t first = b * size_t(W);
         F p[3], n[3], d[3];
@@ -603,20 +606,28 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             defer();
             continue;
         }
-        if (ctx.tree.nodes) {  // a kd-tree asset: one leaf for the whole block, each point in its own, or in general
+        if (ctx.tree.leaves) {  // a kd-tree asset: the last vector's leaf, one leaf for the vector, or each point in its own
             F t[3], out[kOutputs];
-            alignas(64) float lanes[3][W];
-            for (int k = 0; k < 3; ++k) {
-                t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));  // eval::gridCoordinate
-                V::store(lanes[k], t[k]);
-            }
-            if (evalTreeBlock<V>(ctx, t, lanes, n, d, out)) {
-                ++def.treeBlocks;
-                emit(out);
+            for (int k = 0; k < 3; ++k) t[k] = V::mul(V::sub(p[k], V::set1(g.lower[k])), V::set1(g.factor[k]));  // eval::gridCoordinate
+            int32_t leaf = -1;
+            if (lastLeaf >= 0 && (insideLeaf<V>(ctx.tree, lastLeaf, t) & all) == all) {  // runs of points on one surface
+                leaf = lastLeaf;
             } else {
-                if (gb) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
-                recordTreeLanes<V>(ctx, t, first, def, ctx.io.flags);
+                const I leaves = treeLeaves<V>(ctx.tree, g.dims, t);
+                const int32_t leaf0 = V::firstLane(leaves);
+                if (V::equalMask(leaves, V::seti(leaf0)) == all && g.dense[leaf0] >= 0 &&
+                    (g.band == 0.0f || (insideLeaf<V>(ctx.tree, leaf0, t) & all) == all)) {
+                    leaf = leaf0;
+                } else {
+                    if (gb) spill<V, Stride>(ctx.io, first, p, n, d);  // the other paths read BatchIo
+                    recordTreeLanes<V>(ctx, t, leaves, first, def, ctx.io.flags);
+                    continue;
+                }
             }
+            evalTreeLeaf<V>(ctx, leaf, t, n, d, out);
+            lastLeaf = leaf;
+            ++def.treeBlocks;
+            emit(out);
             continue;
         }
         // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no

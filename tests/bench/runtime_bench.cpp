@@ -10,7 +10,8 @@
 //   probes (9 RGB coefficients) holding the same number of bytes as the networks, evaluated in the view
 //   direction; lookups/s on one thread.
 //
-// Usage: runtime_bench [--points N] [--repeat R]
+// Usage: runtime_bench [--points N] [--repeat R] [--band B] [--tree-only] [--kernel scalar|avx2|avx512]
+// (--tree-only: the kd-tree table alone; --kernel: that kernel for the kd-tree table instead of the best one)
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -147,6 +148,16 @@ int main(int argc, char** argv) {
         else if (std::string(argv[i]) == "--repeat") repeat = std::max(1, std::atoi(argv[++i]));
         else if (std::string(argv[i]) == "--band") band = std::min(0.5f, std::max(0.0f, float(std::atof(argv[++i]))));
     }
+    bool treeOnly = false;  // --tree-only: the kd-tree table alone
+    NradKernel treeKernel = NRAD_KERNEL_AUTO;
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        treeOnly = treeOnly || arg == "--tree-only";
+        if (arg == "--kernel" && i + 1 < argc) {
+            const std::string k = argv[++i];
+            treeKernel = k == "scalar" ? NRAD_KERNEL_SCALAR : k == "avx2" ? NRAD_KERNEL_AVX2 : k == "avx512" ? NRAD_KERNEL_AVX512 : NRAD_KERNEL_AUTO;
+        }
+    }
     const int hw = int(std::max(1u, std::thread::hardware_concurrency()));
 
     // The paper's configuration: 3x3x3 voxels, 9-9-3 networks, fp16.
@@ -174,6 +185,7 @@ int main(int argc, char** argv) {
                 points, networkBytes, double(band), hw);
     Points coherent = makePoints(points, true, a.grid, 2), incoherent = makePoints(points, false, a.grid, 3);
     for (int threads : {1, hw}) {
+        if (treeOnly) break;
         // The peak of the widest vectors this CPU has, and of AVX2's, measured now; each kernel is also
         // given as a fraction of the peak of its own width.
         const int widest = nradKernelSupported(NRAD_KERNEL_AVX512) ? 16 : 8;
@@ -200,7 +212,7 @@ int main(int argc, char** argv) {
     // fp16, padded), the coherent points above in raster order, shaded in 64 x 64 tiles through
     // nradShadeGBuffer (evaluate only) into RGBA fp16, each call with its own scratch; against nradEvaluateBatch
     // on the same points in fp32, interleaved, in the same tiles.
-    {
+    if (!treeOnly) {
         using nrad::bench::Texel;
         const size_t w = 1920, h = 1080, frame = w * h;
         Points pts = makePoints(frame, true, a.grid, 7);
@@ -276,9 +288,12 @@ int main(int argc, char** argv) {
 
     // One point per call (nradEvaluate), as a shader's per-pixel fallback or a gameplay query would: the rate
     // must not fall with the number of networks. Grids of 3^3, 7^3 and 16^3 occupied voxels, incoherent points.
-    std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, kernel %d:\n", int(nradActiveKernel()));
-    std::printf("  %-10s %10s %14s\n", "grid", "networks", "M points/s");
+    if (!treeOnly) {
+        std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, kernel %d:\n", int(nradActiveKernel()));
+        std::printf("  %-10s %10s %14s\n", "grid", "networks", "M points/s");
+    }
     for (uint32_t dim : {3u, 7u, 16u}) {
+        if (treeOnly) break;
         nrad::format::Asset big = a;
         big.voxels.clear();
         big.weights.clear();
@@ -323,6 +338,7 @@ int main(int argc, char** argv) {
         fma_peak::gSink = fma_peak::gSink + acc;
         best = std::max(best, double(points) / seconds(t0, clock_type::now()));
     }
+    if (treeKernel != NRAD_KERNEL_AUTO && nradSelectKernel(treeKernel) != NRAD_OK) return 1;
     NradKernel auto_ = nradActiveKernel();
     double network = evaluationsPerSecond(asset, incoherent, 1, repeat);
 

@@ -143,8 +143,15 @@ TEST(Runtime, EveryKernelMatchesAPlainForwardPass) {
 
 // The kd-tree partition: the uniform tree shades exactly as the grid (bit for bit, every kernel, blended or
 // not), and a random tree of leaves of many sizes matches the plain forward pass through eval.h's supports.
+// Both ways the vector path locates in a kd-tree (the rectilinear table of small trees, and the start table's
+// descent that larger ones take), each assets loaded after setMaxRectCells.
+const size_t kRectLimits[2] = {rt::LocateTree::kMaxRectCells, 0};
+
 TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
+    for (size_t rect : kRectLimits)
     for (float band : {0.0f, 0.125f}) {
+        SCOPED_TRACE("rectilinear table up to " + std::to_string(rect) + " cells");
+        rt::setMaxRectCells(rect);
         format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 21,
                                          glm::uvec3(4, 3, 5), band);
         format::Asset tree = grid;
@@ -188,6 +195,7 @@ TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
+    rt::setMaxRectCells(rt::LocateTree::kMaxRectCells);
 }
 
 // Runs of points in one voxel, as a renderer's coherent batches have: most vectors of 8 or 16 points lie
@@ -236,8 +244,10 @@ Points coherentPoints(const format::Asset& a, uint32_t seed) {
 // one point per call (the general path); and the uniform tree against the grid on coherent runs.
 TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
     const uint64_t before = rt::treeBlocksSoFar();
+    for (size_t rect : kRectLimits)
     for (float band : {0.0f, 0.125f}) {
-        SCOPED_TRACE("band " + std::to_string(band));
+        SCOPED_TRACE("band " + std::to_string(band) + ", rectilinear table up to " + std::to_string(rect) + " cells");
+        rt::setMaxRectCells(rect);
         format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 23,
                                          glm::uvec3(4, 3, 5), band);
         format::Asset uniform = grid;
@@ -298,6 +308,7 @@ TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
+    rt::setMaxRectCells(rt::LocateTree::kMaxRectCells);
     if (kernels().size() > 1) {
         EXPECT_GT(rt::treeBlocksSoFar(), before) << "no vector was located in registers";
     }
