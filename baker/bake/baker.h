@@ -36,6 +36,7 @@ struct IntegralSettings {
     // The start's training, short: it only has to give the first round's targets something to stand on (at
     // most these epochs and patience, the first of TrainSettings::weightDecays only).
     int startEpochs = 300, startPatience = 50;
+    int startRestarts = 1;  // initialisations per start network, the lowest held-out error kept (TrainSettings::restarts)
     int bounces = 2;
     int epochs = 4;
     float learningRate = 0.01f, finalLearningRate = 0.0005f;

@@ -195,9 +195,10 @@ double shadedError(const Mlp& mlp, MlpBatchWorkspace& ws, const PreparedSamples&
 }
 
 // One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
-// parameter but the output biases (added to each step's mean gradient).
+// parameter but the output biases (added to each step's mean gradient), from the initialisation of `restart`
+// (0: the first).
 VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings,
-                                float weightDecay) {
+                                float weightDecay, int restart) {
     auto start = std::chrono::steady_clock::now();
     VoxelTrainResult result;
     result.voxel = voxel;
@@ -229,7 +230,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     std::vector<float> bestOverallParams;
     for (int attempt = 0; attempt < settings.maxAttempts; ++attempt) {
         ++result.attempts;
-        uint64_t initSeed = (uint64_t(settings.seed) << 32) ^ (uint64_t(voxel) << 8) ^ uint64_t(attempt);
+        uint64_t initSeed = (uint64_t(settings.seed) << 32) ^ (uint64_t(voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart) << 4);
         mlp.initialize(initSeed, settings.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
         Adam adam(mlp.parameters().size(), settings.learningRate);
         SplitMix64 order(initSeed ^ 0x5851f42d4c957f2dull);
@@ -382,14 +383,15 @@ VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entr
     VoxelTrainResult best;
     double seconds = 0.0;
     const std::vector<float> none = {0.0f};
-    for (float decay : settings.weightDecays.empty() ? none : settings.weightDecays) {
-        VoxelTrainResult r = trainVoxelWith(voxel, entries, settings, decay);
-        seconds += r.seconds;
-        // The lowest held-out error wins (the first on a tie); a fallback only if every candidate fell back.
-        const bool better = best.params.empty() || (best.fallback && !r.fallback) ||
-                            (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
-        if (better) best = std::move(r);
-    }
+    for (float decay : settings.weightDecays.empty() ? none : settings.weightDecays)
+        for (int restart = 0; restart < std::max(1, settings.restarts); ++restart) {
+            VoxelTrainResult r = trainVoxelWith(voxel, entries, settings, decay, restart);
+            seconds += r.seconds;
+            // The lowest held-out error wins (the first on a tie); a fallback only if every candidate fell back.
+            const bool better = best.params.empty() || (best.fallback && !r.fallback) ||
+                                (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
+            if (better) best = std::move(r);
+        }
     best.seconds = seconds;
     return best;
 }

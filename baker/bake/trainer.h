@@ -41,6 +41,9 @@ struct TrainSettings {
     // network's training samples, its blending margin's included), so that it fades as data grows: every voxel trains once per candidate and keeps the one with
     // the lowest held-out error. 0 alone trains once, unregularised (docs/training.md).
     std::vector<float> weightDecays = {0.0f, 2.5f};
+    // Initialisations per weight decay: each trains from its own random start and the lowest held-out error
+    // wins (1: one, the first, as always).
+    int restarts = 1;
 };
 
 struct TrainCurvePoint {

@@ -153,6 +153,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("generation_epochs", "--generation-epochs", o.integral.epochs);
             take("bounces", "--bounces", o.integral.bounces);
             take("start_epochs", "--start-epochs", o.integral.startEpochs);
+            take("start_restarts", "--start-restarts", o.integral.startRestarts);
             take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
             if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
                 o.grid = std::to_string(cfg["grid"].get<int>());
@@ -247,8 +248,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     }
     if (!parseTrainingMethod(o.training, s.training))
         return usage("--training " + o.training + ": expected monte-carlo or integral");
-    if (o.integral.paths < 1 || o.integral.epochs < 1 || o.integral.startEpochs < 1 || o.integral.bounces < 1 || o.integral.bounces > 8)
-        return usage("--generation-paths, --generation-epochs and --start-epochs must be positive, --bounces 1 to 8");
+    if (o.integral.paths < 1 || o.integral.epochs < 1 || o.integral.startEpochs < 1 || o.integral.startRestarts < 1 || o.integral.startRestarts > 64 || o.integral.bounces < 1 || o.integral.bounces > 8)
+        return usage("--generation-paths, --generation-epochs and --start-epochs must be positive, --start-restarts 1 to 64, --bounces 1 to 8");
     if (!o.generationLr.empty()) {
         std::vector<float> lr;
         if (!parseFloats(o.generationLr, lr) || lr.size() != 2 || !(lr[0] > 0.0f) || !(lr[1] > 0.0f))
@@ -468,6 +469,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.01,0.0005)");
     cmd->add_option("--average-decay", o->integral.averageDecay, "Integral training: per-step decay of the networks' moving average, 0 = none (default 0.99)");
     cmd->add_option("--start-epochs", o->integral.startEpochs, "Integral training: at most this many epochs for the Monte Carlo start (default 300)");
+    cmd->add_option("--start-restarts", o->integral.startRestarts,
+                    "Integral training: initialisations of each start network, the lowest held-out error kept (default 1)");
     cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 2)");
     cmd->add_option("--save-generations", o->saveGenerations,
                     "Integral training: also write the asset after every round as PREFIX-gN.nrad (N = 0 is the Monte Carlo start)");

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Draws relMSE against asset bytes (log-log SVG) from tests/bench/partition_sweep.sh's sweep.txt: per scene
 the uniform grids, the adaptive kd-tree at the same bytes, and the SH probes of equal bytes.
-Usage: error_bytes_plot.py sweep.txt out.svg"""
+Usage: error_bytes_plot.py sweep.txt out.svg [title]"""
 import math, os, re, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -26,7 +26,7 @@ for scene, r in rows.items():
                (names.get(scene, scene) + ": adaptive kd-tree", colours.get(scene, "#333"), kd, "6,4"),
                (names.get(scene, scene) + ": SH probes", colours.get(scene, "#333"), sh, "1,4")]
 pts = [p for _, _, s, _ in series for p in s]
-o, X, Y, L, T, pw, ph, H = loglog_svg.frame("Error against bytes (256 px validation views)", pts, 250)
+o, X, Y, L, T, pw, ph, H = loglog_svg.frame(sys.argv[3] if len(sys.argv) > 3 else "Error against bytes (256 px validation views)", pts, 250)
 o.append(f'<rect x="{L}" y="{T}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>')
 o.append(f'<text x="{L + pw / 2}" y="{H - 12}" text-anchor="middle">asset bytes (SH probes: their coefficients)</text>')
 o.append(f'<text transform="translate(16,{T + ph / 2}) rotate(-90)" text-anchor="middle">relMSE against the reference</text>')

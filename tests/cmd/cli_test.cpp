@@ -220,7 +220,8 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
                               "--budget 8K --min-leaf-samples 2", "--training td", "--training integral --bounces 0",
                               "--training integral --bounces 9", "--training integral --generation-epochs 0",
                               "--training integral --generation-lr 0.01", "--training integral --generation-lr 0.01,-1",
-                              "--training integral --average-decay 1", "--training integral --start-epochs 0"}) {
+                              "--training integral --average-decay 1", "--training integral --start-epochs 0",
+                              "--training integral --start-restarts 0", "--training integral --start-restarts 65"}) {
         RunResult r = run("bake " + cornell() + out + " " + flags);
         EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
     }
