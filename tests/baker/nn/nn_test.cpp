@@ -246,6 +246,20 @@ std::vector<TrainingSample> makeSamples(const VoxelGrid& grid, F f, size_t count
     return samples;
 }
 
+// One voxel over the unit cube.
+VoxelGrid unitVoxel() {
+    Bounds3 bounds;
+    bounds.extend(glm::vec3(0.0f));
+    bounds.extend(glm::vec3(1.0f));
+    return VoxelGrid(bounds, glm::uvec3(1));
+}
+
+std::vector<const TrainingSample*> pointersTo(const std::vector<TrainingSample>& samples) {
+    std::vector<const TrainingSample*> ptrs;
+    for (const TrainingSample& s : samples) ptrs.push_back(&s);
+    return ptrs;
+}
+
 TEST(Trainer, ReproducesKnownFunctions) {
     Bounds3 bounds;
     bounds.extend(glm::vec3(0.0f));
@@ -276,13 +290,9 @@ TEST(Trainer, ReproducesKnownFunctions) {
 // and of several the lowest held-out error is kept, so it is never above the single training's; a smooth
 // function with few samples and short training, where initialisations differ, shows that they do.
 TEST(Trainer, RestartsKeepTheLowestHeldOutErrorAndStartFromTheSingleTraining) {
-    Bounds3 bounds;
-    bounds.extend(glm::vec3(0.0f));
-    bounds.extend(glm::vec3(1.0f));
-    VoxelGrid grid(bounds, glm::uvec3(1));
-    std::vector<TrainingSample> samples = makeSamples(grid, smooth, 400);
-    std::vector<const TrainingSample*> ptrs;
-    for (const TrainingSample& s : samples) ptrs.push_back(&s);
+    const VoxelGrid grid = unitVoxel();
+    const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 400);
+    const std::vector<const TrainingSample*> ptrs = pointersTo(samples);
     TrainSettings settings;
     settings.epochs = 60;
     settings.weightDecays = {0.0f};
@@ -332,13 +342,9 @@ namespace nrad {
 namespace {
 
 TEST(Trainer, DivergentTrainingIsDetectedRetriedAndNeverStoresNonFiniteWeights) {
-    Bounds3 bounds;
-    bounds.extend(glm::vec3(0.0f));
-    bounds.extend(glm::vec3(1.0f));
-    VoxelGrid grid(bounds, glm::uvec3(1));
-    std::vector<TrainingSample> samples = makeSamples(grid, smooth, 400);
-    std::vector<const TrainingSample*> ptrs;
-    for (const TrainingSample& s : samples) ptrs.push_back(&s);
+    const VoxelGrid grid = unitVoxel();
+    const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 400);
+    const std::vector<const TrainingSample*> ptrs = pointersTo(samples);
     TrainSettings settings;
     settings.learningRate = 1e30f;  // every attempt blows up
     settings.epochs = 20;
