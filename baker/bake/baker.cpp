@@ -225,7 +225,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         startTrain.epochs = std::min(startTrain.epochs, settings.integral.startEpochs);
         startTrain.patience = std::min(startTrain.patience, settings.integral.startPatience);
         if (startTrain.weightDecays.size() > 1) startTrain.weightDecays.resize(1);
-        startTrain.restarts = settings.integral.startRestarts;
+        startTrain.restarts = settings.integral.restarts();
     }
     std::atomic<size_t> done{0};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
@@ -384,7 +384,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                                  {"epochs_per_generation", in.epochs},
                                  {"learning_rate", {in.learningRate, in.finalLearningRate}},
                                  {"average_decay", in.averageDecay}};
-        if (in.startRestarts != 1) j["bake"]["training"]["start_restarts"] = in.startRestarts;  // only then: earlier assets keep their bytes
+        if (in.restarts() != 1) j["bake"]["training"]["start_restarts"] = in.restarts();  // only then: earlier assets keep their bytes
     }
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},

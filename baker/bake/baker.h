@@ -36,7 +36,11 @@ struct IntegralSettings {
     // The start's training, short: it only has to give the first round's targets something to stand on (at
     // most these epochs and patience, the first of TrainSettings::weightDecays only).
     int startEpochs = 300, startPatience = 50;
-    int startRestarts = 1;  // initialisations per start network, the lowest held-out error kept (TrainSettings::restarts)
+    // Initialisations per start network, the lowest held-out error kept (TrainSettings::restarts); 0: automatic,
+    // 4 for bakes of 32 rounds or more (where the start costs little and one network's poor start, which the
+    // rounds do not undo, is what remains), else 1 (restarts()).
+    int startRestarts = 0;
+    int restarts() const { return startRestarts > 0 ? startRestarts : (generations >= 32 ? 4 : 1); }
     int bounces = 2;
     int epochs = 4;
     float learningRate = 0.01f, finalLearningRate = 0.0005f;

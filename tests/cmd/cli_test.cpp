@@ -185,6 +185,17 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     RunResult info = run("info '" + dir + "/a.nrad'");
     EXPECT_NE(info.output.find("\"method\":\"integral\""), std::string::npos) << info.output;
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 5);  // no temporary files
+    // The start's restarts: 1 for 2 rounds (not recorded), 4 by default from 32 rounds on, or as asked.
+    EXPECT_EQ(info.output.find("start_restarts"), std::string::npos) << info.output;
+    for (const auto& [flags, recorded] : {std::pair<std::string, std::string>{"--generations 32", "\"start_restarts\":4"},
+                                          {"--generations 2 --start-restarts 3", "\"start_restarts\":3"}}) {
+        const std::string path = dir + "/restarts.nrad";
+        r = run("bake " + cornell() + " -o '" + path + "' --training integral --points 800 --generation-points 1000 " + flags + " -q");
+        ASSERT_EQ(r.exitCode, 0) << flags << ": " << r.output;
+        RunResult restarts = run("info '" + path + "'");
+        EXPECT_NE(restarts.output.find(recorded), std::string::npos) << flags << ": " << restarts.output;
+        fs::remove(path);
+    }
     // Its SH-probe baseline is fitted to Monte Carlo samples at the bake defaults (its own targets are one
     // bounce against its networks, its start's four paths would handicap the probes).
     r = run("validate " + cornell() + " '" + dir + "/a.nrad' -o '" + dir + "/report' --width 16 --reference-spp 4 --curve-max-spp 1 "
@@ -221,7 +232,7 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
                               "--training integral --bounces 9", "--training integral --generation-epochs 0",
                               "--training integral --generation-lr 0.01", "--training integral --generation-lr 0.01,-1",
                               "--training integral --average-decay 1", "--training integral --start-epochs 0",
-                              "--training integral --start-restarts 0", "--training integral --start-restarts 65"}) {
+                              "--training integral --start-restarts -1", "--training integral --start-restarts 65"}) {
         RunResult r = run("bake " + cornell() + out + " " + flags);
         EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
     }
