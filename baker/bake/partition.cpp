@@ -2,7 +2,6 @@
 #include "baker/bake/partition.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
 #include <queue>
 #include <stdexcept>
@@ -155,25 +154,6 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
             for (uint32_t j = 1; j < kCandidateBins; ++j) {
                 const uint32_t plane = lo + uint32_t((uint64_t(extent) * j + kCandidateBins / 2) / kCandidateBins);
                 if (plane > lo && plane < c.box.hi[k] && (planes[k].empty() || planes[k].back() != plane)) planes[k].push_back(plane);
-            }
-        }
-        if (std::getenv("NRAD_EXP_FACE_PLANES")) {
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t lo = c.box.lo[k], extent = c.box.hi[k] - c.box.lo[k];
-                std::vector<uint32_t> facing(extent, 0);
-                for (size_t j = 0; j < count; j += stride) {
-                    const uint32_t i = c.samples[j];
-                    if (std::abs(samples[i].normal[k]) < 0.95f) continue;
-                    const uint32_t v = std::min(extent - 1, uint32_t(std::max(0.0f, t[3 * size_t(i) + size_t(k)] - float(lo))));
-                    ++facing[v];
-                }
-                const size_t used = (count + stride - 1) / stride;
-                for (uint32_t v = 0; v < extent; ++v)
-                    if (facing[v] * 10 >= used)
-                        for (uint32_t plane : {lo + v, lo + v + 1})
-                            if (plane > lo && plane < c.box.hi[k]) planes[k].push_back(plane);
-                std::sort(planes[k].begin(), planes[k].end());
-                planes[k].erase(std::unique(planes[k].begin(), planes[k].end()), planes[k].end());
             }
         }
         std::vector<Moments> bins[3];
