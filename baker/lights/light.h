@@ -72,6 +72,8 @@ private:
     uint32_t triangle_;
     float area_;
     double power_;
+    glm::vec3 normal_;  // TriangleMesh::geometricNormal, once
+    float margin_;  // triangleMargin, once
 };
 
 // The lights of the scene, in entry order: emissive triangles of positive power (index order), punctual

@@ -147,7 +147,8 @@ glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi) {
 }
 
 TriangleLight::TriangleLight(const Scene& scene, uint32_t triangle, double power)
-    : scene_(scene), triangle_(triangle), area_(scene.mesh.triangleArea(triangle)), power_(power) {}
+    : scene_(scene), triangle_(triangle), area_(scene.mesh.triangleArea(triangle)), power_(power),
+      normal_(scene.mesh.geometricNormal(triangle)), margin_(triangleMargin(scene.mesh, triangle)) {}
 
 LightSample TriangleLight::sample(const glm::vec3& p, glm::vec2 u) const {
     const glm::uvec3& tri = scene_.mesh.triangles[triangle_];
@@ -160,7 +161,7 @@ LightSample TriangleLight::sample(const glm::vec3& p, glm::vec2 u) const {
 
 LightSample TriangleLight::sampleAt(const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const {
     LightSample ls;
-    glm::vec3 nl = scene_.mesh.geometricNormal(triangle_);
+    glm::vec3 nl = normal_;
     glm::vec3 d = pl - p;
     float dist2 = glm::dot(d, d);
     if (!(dist2 > 0.0f)) return ls;
@@ -177,7 +178,7 @@ LightSample TriangleLight::sampleAt(const glm::vec3& p, const glm::vec3& pl, flo
     ls.pdf = dist2 / (absCos * area_);
     ls.lightPoint = pl;
     ls.lightNormal = nl;
-    ls.margin = triangleMargin(scene_.mesh, triangle_);
+    ls.margin = margin_;
     if (!std::isfinite(ls.pdf)) ls.pdf = 0.0f;
     return ls;
 }

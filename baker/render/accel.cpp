@@ -14,6 +14,7 @@ namespace nrad {
 struct Accel::Impl {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;
+    std::vector<glm::vec4> faces;  // per triangle: geometric normal, triangleMargin (Hit::ng, Hit::margin)
     ~Impl() {
         if (scene) rtcReleaseScene(scene);
         if (device) rtcReleaseDevice(device);
@@ -87,7 +88,22 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
     build(scene.mesh, needsCoverage(scene) ? &scene : nullptr);
 }
 
+float rayOffset(const glm::vec3& p) {
+    float m = std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z)));
+    // A few hundred float ulps of the largest coordinate, with a floor for points near the origin.
+    return std::max(m * 4e-6f, 1e-30f);
+}
+
+float triangleMargin(const TriangleMesh& mesh, uint32_t t) {
+    const glm::uvec3& tri = mesh.triangles[t];
+    glm::vec3 m = glm::max(glm::abs(mesh.positions[tri.x]), glm::max(glm::abs(mesh.positions[tri.y]), glm::abs(mesh.positions[tri.z])));
+    return rayOffset(m);
+}
+
 void Accel::build(const TriangleMesh& mesh, const Scene* coverage) {
+    impl_->faces.resize(mesh.triangles.size());
+    for (uint32_t t = 0; t < uint32_t(mesh.triangles.size()); ++t)
+        impl_->faces[t] = glm::vec4(mesh.geometricNormal(t), triangleMargin(mesh, t));
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtcSetDeviceErrorFunction(impl_->device, errorCallback, nullptr);
@@ -144,6 +160,9 @@ Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float 
         hit.triangle = rh.hit.primID;
         hit.u = rh.hit.u;
         hit.v = rh.hit.v;
+        const glm::vec4& face = impl_->faces[hit.triangle];
+        hit.ng = glm::vec3(face);
+        hit.margin = face.w;
     }
     return hit;
 }

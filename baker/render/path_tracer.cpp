@@ -238,7 +238,7 @@ bool PathTracer::viewable(const SurfaceInteraction& si) const {
     const Material& m = scene_.materials[scene_.mesh.materialIds[hit.triangle]];
     // A viewer may stand beyond a surface it sees through (transmission, alpha blending): only opaque backs hide.
     const bool seeThrough = m.transmission > 0.0f || m.alphaMode == Material::AlphaMode::Blend;
-    return m.doubleSided || seeThrough || glm::dot(scene_.mesh.geometricNormal(hit.triangle), si.wo) <= 0.0f;
+    return m.doubleSided || seeThrough || glm::dot(hit.ng, si.wo) <= 0.0f;
 }
 
 Image PathTracer::render(const Camera& camera, const RenderSettings& settings, RenderStats* stats,

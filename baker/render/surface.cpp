@@ -50,18 +50,6 @@ glm::vec3 normalMapped(const Scene& scene, const Material& m, const glm::uvec3& 
 
 }  // namespace
 
-float rayOffset(const glm::vec3& p) {
-    float m = std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z)));
-    // A few hundred float ulps of the largest coordinate, with a floor for points near the origin.
-    return std::max(m * 4e-6f, 1e-30f);
-}
-
-float triangleMargin(const TriangleMesh& mesh, uint32_t t) {
-    const glm::uvec3& tri = mesh.triangles[t];
-    glm::vec3 m = glm::max(glm::abs(mesh.positions[tri.x]), glm::max(glm::abs(mesh.positions[tri.y]), glm::abs(mesh.positions[tri.z])));
-    return rayOffset(m);
-}
-
 float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
     float c = std::abs(glm::dot(w, ng));
     return c > 0.0f ? std::max(margin, rayOffset(p)) / c : std::numeric_limits<float>::infinity();
@@ -108,7 +96,7 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.triangle = hit.triangle;
     si.p = b0 * mesh.positions[tri.x] + b1 * mesh.positions[tri.y] + b2 * mesh.positions[tri.z];
     si.wo = -direction;
-    glm::vec3 ng = mesh.geometricNormal(hit.triangle);
+    glm::vec3 ng = hit.margin >= 0.0f ? hit.ng : mesh.geometricNormal(hit.triangle);
     glm::vec3 ns = b0 * mesh.normals[tri.x] + b1 * mesh.normals[tri.y] + b2 * mesh.normals[tri.z];
     float nsLen = glm::length(ns);
     ns = (nsLen > 1e-6f && std::isfinite(nsLen)) ? ns / nsLen : ng;
@@ -146,7 +134,7 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.bsdf.metallic = std::clamp(si.bsdf.metallic, 0.0f, 1.0f);
     si.bsdf.roughness = std::clamp(si.bsdf.roughness, 0.0f, 1.0f);
     si.emission = emittedRadiance(scene, hit.triangle, hit.u, hit.v, si.frontFace);
-    si.margin = triangleMargin(mesh, hit.triangle);
+    si.margin = hit.margin >= 0.0f ? hit.margin : triangleMargin(mesh, hit.triangle);
     return si;
 }
 

@@ -45,15 +45,5 @@ eval::Surface shadingSurface(const SurfaceInteraction& si);
 // Builds the interaction for a hit of a ray travelling along `direction`.
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);
 
-// A few hundred float ulps of the largest coordinate magnitude of p (with a floor near the origin): a
-// distance beyond the rounding of anything computed from coordinates of that size, at any scene scale.
-float rayOffset(const glm::vec3& p);
-
-// Margin around triangle t's plane within which a ray leaving (or aiming at) a point of it does not look
-// for hits: rayOffset of the largest coordinate of its three vertices. Both the rounding of a point
-// interpolated on the triangle and Embree's rounding of a ray's distance to its plane scale with its
-// vertices' coordinates, not the point's: on a large tilted triangle through the origin, a margin from
-// the point's own coordinates let 46% of the shadow rays near the origin find their own triangle.
-float triangleMargin(const TriangleMesh& mesh, uint32_t t);
 
 }  // namespace nrad
