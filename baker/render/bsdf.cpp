@@ -66,9 +66,8 @@ float Bsdf::macroFresnel(float cosTheta) const {
     return maxComponent(dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * pow5(1.0f - cosTheta));
 }
 
-void Bsdf::lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) const {
+void Bsdf::lobeWeights(float fresnel, float& spec, float& diff, float& trans) const {
     // Expected weight of each lobe at this viewing angle (Fresnel at the macro normal).
-    float fresnel = macroFresnel(cosThetaO);
     float baseLum = 0.2126f * p_.baseColor.x + 0.7152f * p_.baseColor.y + 0.0722f * p_.baseColor.z;
     spec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
     float base = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
@@ -76,27 +75,39 @@ void Bsdf::lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) 
     trans = p_.transmission * base;
 }
 
-void Bsdf::lobeProbabilities(float cosThetaO, float& pSpec, float& pTrans) const {
+void Bsdf::lobeProbabilities(float fresnel, float& pSpec, float& pTrans) const {
     float spec, diff, trans;
-    lobeWeights(cosThetaO, spec, diff, trans);
+    lobeWeights(fresnel, spec, diff, trans);
     const float sum = spec + diff + trans;
     pSpec = spec <= 0.0f ? 0.0f : (sum > spec ? spec / sum : 1.0f);
     pTrans = trans > 0.0f && sum > 0.0f ? trans / sum : 0.0f;
 }
 
+Bsdf::Outgoing Bsdf::outgoingLocal(const glm::vec3& wo) const {
+    Outgoing o;
+    o.wo = wo;
+    o.lambda = ggxLambda(wo.z, alpha_);
+    o.fresnel = macroFresnel(wo.z);
+    lobeProbabilities(o.fresnel, o.pSpec, o.pTrans);
+    return o;
+}
+
+Bsdf::Outgoing Bsdf::outgoing(const glm::vec3& wo) const { return outgoingLocal(frame_.toLocal(wo)); }
+
 float Bsdf::specularProbability(float cosThetaO) const {
     float pSpec, pTrans;
-    lobeProbabilities(cosThetaO, pSpec, pTrans);
+    lobeProbabilities(macroFresnel(cosThetaO), pSpec, pTrans);
     return pSpec;
 }
 
 float Bsdf::transmissionProbability(float cosThetaO) const {
     float pSpec, pTrans;
-    lobeProbabilities(cosThetaO, pSpec, pTrans);
+    lobeProbabilities(macroFresnel(cosThetaO), pSpec, pTrans);
     return pTrans;
 }
 
-glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
+glm::vec3 Bsdf::evalLocal(const Outgoing& o, const glm::vec3& wiIn) const {
+    const glm::vec3& wo = o.wo;
     if (wo.z <= 0.0f || wiIn.z == 0.0f) return glm::vec3(0.0f);
     if (wiIn.z < 0.0f) {
         // Thin-walled transmission: the specular lobe towards the mirror image of wi through the surface,
@@ -105,7 +116,7 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
         const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
         glm::vec3 h = glm::normalize(wo + wi);
         float schlick = pow5(1.0f - std::clamp(glm::dot(wo, h), 0.0f, 1.0f));
-        float g2 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_) + ggxLambda(wi.z, alpha_));
+        float g2 = 1.0f / (1.0f + o.lambda + ggxLambda(wi.z, alpha_));
         float lobe = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
         glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
         return (1.0f - p_.metallic) * p_.transmission * (glm::vec3(1.0f) - p_.specular * fr) * p_.baseColor * lobe;
@@ -118,7 +129,7 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
     float vdoth = std::clamp(glm::dot(wo, h), 0.0f, 1.0f);
     float schlick = pow5(1.0f - vdoth);
     // Specular microfacet term: D * V with the height-correlated Smith G2.
-    float g2 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_) + ggxLambda(wi.z, alpha_));
+    float g2 = 1.0f / (1.0f + o.lambda + ggxLambda(wi.z, alpha_));
     float specular = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
     glm::vec3 diffuse = p_.baseColor / kPi;
     // Dielectric: the specular layer weighted by fresnel_mix's Schlick term at the microfacet normal, as in
@@ -127,28 +138,23 @@ glm::vec3 Bsdf::evalLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
     // energy for a white base at grazing view (tests/baker/render/bsdf_test.cpp); this form is reciprocal
     // and keeps the albedo at most one. Appendix B is informative, so both are within the specification.
     glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
-    float transmitted = (1.0f - p_.specular * macroFresnel(wo.z)) * (1.0f - p_.specular * macroFresnel(wi.z));
+    float transmitted = (1.0f - p_.specular * o.fresnel) * (1.0f - p_.specular * macroFresnel(wi.z));
     glm::vec3 dielectric = (1.0f - p_.transmission) * transmitted * diffuse + p_.specular * fr * specular;
     // Metal: conductor Fresnel with f0 = baseColor.
     glm::vec3 metal = (p_.baseColor + (glm::vec3(1.0f) - p_.baseColor) * schlick) * specular;
     return (1.0f - p_.metallic) * dielectric + p_.metallic * metal;
 }
 
-float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn) const {
-    if (wo.z <= 0.0f || wiIn.z == 0.0f) return 0.0f;
-    float pSpec, pTrans;
-    lobeProbabilities(wo.z, pSpec, pTrans);
-    return pdfLocal(wo, wiIn, pSpec, pTrans);
-}
-
-float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn, float pSpec, float pTrans) const {
+float Bsdf::pdfLocal(const Outgoing& o, const glm::vec3& wiIn) const {
+    const glm::vec3& wo = o.wo;
+    const float pSpec = o.pSpec, pTrans = o.pTrans;
     if (wo.z <= 0.0f || wiIn.z == 0.0f) return 0.0f;
     if (wiIn.z < 0.0f) {
         if (!(pTrans > 0.0f)) return 0.0f;
         const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
         glm::vec3 h = glm::normalize(wo + wi);
         if (!(glm::dot(wo, h) > 0.0f)) return 0.0f;
-        float g1 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_));
+        float g1 = 1.0f / (1.0f + o.lambda);
         return pTrans * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
     }
     const glm::vec3& wi = wiIn;
@@ -158,27 +164,22 @@ float Bsdf::pdfLocal(const glm::vec3& wo, const glm::vec3& wiIn, float pSpec, fl
         float odoth = glm::dot(wo, h);
         if (odoth > 0.0f) {
             // Visible-normal pdf transformed to the reflected direction: G1(wo) D(h) / (4 wo.z).
-            float g1 = 1.0f / (1.0f + ggxLambda(wo.z, alpha_));
+            float g1 = 1.0f / (1.0f + o.lambda);
             pdf += pSpec * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
         }
     }
     return pdf;
 }
 
-glm::vec3 Bsdf::eval(const glm::vec3& wo, const glm::vec3& wi) const {
-    return evalLocal(frame_.toLocal(wo), frame_.toLocal(wi));
-}
+glm::vec3 Bsdf::eval(const Outgoing& o, const glm::vec3& wi) const { return evalLocal(o, frame_.toLocal(wi)); }
 
-float Bsdf::pdf(const glm::vec3& wo, const glm::vec3& wi) const {
-    return pdfLocal(frame_.toLocal(wo), frame_.toLocal(wi));
-}
+float Bsdf::pdf(const Outgoing& o, const glm::vec3& wi) const { return pdfLocal(o, frame_.toLocal(wi)); }
 
-BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& u) const {
-    glm::vec3 wo = frame_.toLocal(woWorld);
+BsdfSample Bsdf::sample(const Outgoing& o, float uLobe, const glm::vec2& u) const {
+    const glm::vec3& wo = o.wo;
     BsdfSample s;
     if (wo.z <= 0.0f) return s;
-    float pSpec, pTrans;
-    lobeProbabilities(wo.z, pSpec, pTrans);
+    const float pSpec = o.pSpec, pTrans = o.pTrans;
     glm::vec3 wi;
     bool through = false;
     if (uLobe < pSpec) {
@@ -207,12 +208,12 @@ BsdfSample Bsdf::sample(const glm::vec3& woWorld, float uLobe, const glm::vec2& 
     }
     if (wi.z <= 0.0f) return s;
     if (through) wi.z = -wi.z;  // mirrored through the sheet
-    s.pdf = pdfLocal(wo, wi, pSpec, pTrans);
+    s.pdf = pdfLocal(o, wi);
     if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf)) {
         s.pdf = 0.0f;
         return s;
     }
-    s.f = evalLocal(wo, wi);
+    s.f = evalLocal(o, wi);
     s.wi = frame_.toWorld(wi);
     return s;
 }

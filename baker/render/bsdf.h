@@ -45,12 +45,25 @@ public:
 
     Bsdf(const Frame& shading, const BsdfParams& params);
 
+    // What depends on the outgoing direction alone, computed once per path vertex (outgoing()) and shared by
+    // every eval, pdf and sample there; the same bits as computing it in each.
+    struct Outgoing {
+        glm::vec3 wo{0.0f};  // local frame
+        float lambda = 0.0f;  // ggxLambda(wo.z, alpha)
+        float fresnel = 0.0f;  // macroFresnel(wo.z)
+        float pSpec = 0.0f, pTrans = 0.0f;  // lobeProbabilities(wo.z)
+    };
+    Outgoing outgoing(const glm::vec3& wo) const;
+
     // All directions are world-space unit vectors pointing away from the surface. wo must lie above the shading
     // hemisphere; wi below it is transmission (zero unless the material transmits).
-    glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi) const;
-    float pdf(const glm::vec3& wo, const glm::vec3& wi) const;
+    glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi) const { return eval(outgoing(wo), wi); }
+    float pdf(const glm::vec3& wo, const glm::vec3& wi) const { return pdf(outgoing(wo), wi); }
     // uLobe picks the lobe, u picks the direction.
-    BsdfSample sample(const glm::vec3& wo, float uLobe, const glm::vec2& u) const;
+    BsdfSample sample(const glm::vec3& wo, float uLobe, const glm::vec2& u) const { return sample(outgoing(wo), uLobe, u); }
+    glm::vec3 eval(const Outgoing& o, const glm::vec3& wi) const;
+    float pdf(const Outgoing& o, const glm::vec3& wi) const;
+    BsdfSample sample(const Outgoing& o, float uLobe, const glm::vec2& u) const;
 
     const Frame& frame() const { return frame_; }
     float alpha() const { return alpha_; }
@@ -65,12 +78,13 @@ public:
     static float ggxLambda(float cosTheta, float alpha);
 
 private:
-    void lobeWeights(float cosThetaO, float& spec, float& diff, float& trans) const;
+    // fresnel: macroFresnel(cosThetaO).
+    void lobeWeights(float fresnel, float& spec, float& diff, float& trans) const;
     // specularProbability and transmissionProbability from one lobeWeights.
-    void lobeProbabilities(float cosThetaO, float& pSpec, float& pTrans) const;
-    float pdfLocal(const glm::vec3& wo, const glm::vec3& wi, float pSpec, float pTrans) const;
-    glm::vec3 evalLocal(const glm::vec3& wo, const glm::vec3& wi) const;
-    float pdfLocal(const glm::vec3& wo, const glm::vec3& wi) const;
+    void lobeProbabilities(float fresnel, float& pSpec, float& pTrans) const;
+    Outgoing outgoingLocal(const glm::vec3& wo) const;
+    float pdfLocal(const Outgoing& o, const glm::vec3& wi) const;
+    glm::vec3 evalLocal(const Outgoing& o, const glm::vec3& wi) const;
 
     Frame frame_;
     BsdfParams p_;

@@ -154,6 +154,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         if (maxDepth > 0 && depth + 1 >= maxDepth) break;
 
         Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
+        const Bsdf::Outgoing out = bsdf.outgoing(si.wo);  // shared by this vertex's evaluations
         // The sampler's dimensions are consumed in the same order at every vertex.
         // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
         // the chosen light's probability, is reused as the point's first coordinate, so the samples that
@@ -181,11 +182,11 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
         {
             if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
-                glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
+                glm::vec3 f = bsdf.eval(out, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
                 if (!isBlack(f)) {
                     ++counters.shadow;
                     if (reachesPoint(accel_, si, ls, record)) {
-                        float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(si.wo, ls.wi));
+                        float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(out, ls.wi));
                         L += beta * f * ls.Li * (w / ls.pdf);
                         if (recordHere) {
                             // The group's contribution estimate (without MIS weight) over the probability
@@ -202,7 +203,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
         }
 
         // Continue the path by sampling the BSDF.
-        BsdfSample bs = bsdf.sample(si.wo, uLobe, uBsdf);
+        BsdfSample bs = bsdf.sample(out, uLobe, uBsdf);
         if (!bs.valid() || !sameSideRule(si, bsdf, bs.wi)) break;
         beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
         if (isBlack(beta) || !isFinite(beta)) break;
