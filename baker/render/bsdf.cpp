@@ -83,16 +83,14 @@ void Bsdf::lobeProbabilities(float fresnel, float& pSpec, float& pTrans) const {
     pTrans = trans > 0.0f && sum > 0.0f ? trans / sum : 0.0f;
 }
 
-Bsdf::Outgoing Bsdf::outgoingLocal(const glm::vec3& wo) const {
+Bsdf::Outgoing Bsdf::outgoing(const glm::vec3& woWorld) const {
     Outgoing o;
-    o.wo = wo;
-    o.lambda = ggxLambda(wo.z, alpha_);
-    o.fresnel = macroFresnel(wo.z);
+    o.wo = frame_.toLocal(woWorld);
+    o.lambda = ggxLambda(o.wo.z, alpha_);
+    o.fresnel = macroFresnel(o.wo.z);
     lobeProbabilities(o.fresnel, o.pSpec, o.pTrans);
     return o;
 }
-
-Bsdf::Outgoing Bsdf::outgoing(const glm::vec3& wo) const { return outgoingLocal(frame_.toLocal(wo)); }
 
 float Bsdf::specularProbability(float cosThetaO) const {
     float pSpec, pTrans;

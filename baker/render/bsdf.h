@@ -82,7 +82,6 @@ private:
     void lobeWeights(float fresnel, float& spec, float& diff, float& trans) const;
     // specularProbability and transmissionProbability from one lobeWeights.
     void lobeProbabilities(float fresnel, float& pSpec, float& pTrans) const;
-    Outgoing outgoingLocal(const glm::vec3& wo) const;
     float pdfLocal(const Outgoing& o, const glm::vec3& wi) const;
     glm::vec3 evalLocal(const Outgoing& o, const glm::vec3& wi) const;
 

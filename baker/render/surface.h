@@ -45,5 +45,4 @@ eval::Surface shadingSurface(const SurfaceInteraction& si);
 // Builds the interaction for a hit of a ray travelling along `direction`.
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);
 
-
 }  // namespace nrad

@@ -197,9 +197,9 @@ void tagTree(const eval::Partition& part, std::vector<int32_t>& nodes, std::vect
 }
 
 // rt::LocateTree's rectilinear table of a kd-tree partition (every distinct split of each axis cuts the
-// lattice; each cell of the product lies in one leaf, found by descending from its lowest voxel with the
-// descent's own test), or false, leaving both empty, past kMaxRectCells cells (setMaxRectCells).
-bool rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, std::vector<int32_t>& leaves, uint32_t offset[3]) {
+// lattice; each cell of the product lies in one leaf, the leaf of its lowest voxel's corner: eval::treeLeafAt),
+// both left empty past kMaxRectCells cells (setMaxRectCells).
+void rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, std::vector<int32_t>& leaves, uint32_t offset[3]) {
     axis.clear();
     leaves.clear();
     std::vector<std::vector<uint32_t>> cuts(3);  // per axis: the lower voxel of each interval
@@ -211,7 +211,7 @@ bool rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, s
         std::sort(cuts[k].begin(), cuts[k].end());
         cuts[k].erase(std::unique(cuts[k].begin(), cuts[k].end()), cuts[k].end());
         cells *= cuts[k].size();
-        if (cells > gMaxRectCells.load(std::memory_order_relaxed)) return false;
+        if (cells > gMaxRectCells.load(std::memory_order_relaxed)) return;
     }
     const uint32_t* dims = part.grid.dims;
     int32_t stride = 1;
@@ -227,15 +227,10 @@ bool rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, s
     for (size_t z = 0; z < cuts[2].size(); ++z)
         for (size_t y = 0; y < cuts[1].size(); ++y)
             for (size_t x = 0; x < cuts[0].size(); ++x) {
-                const uint32_t voxel[3] = {cuts[0][x], cuts[1][y], cuts[2][z]};
-                uint32_t at = 0;
-                while (part.tree[at].axis != format::kTreeLeaf) {
-                    const format::TreeNode& n = part.tree[at];
-                    at = float(voxel[n.axis]) >= float(n.split) ? n.child + 1 : n.child;
-                }
-                leaves[(z * cuts[1].size() + y) * cuts[0].size() + x] = int32_t(part.tree[at].child);
+                const float t[3] = {float(cuts[0][x]), float(cuts[1][y]), float(cuts[2][z])};
+                format::TreeBox box;
+                leaves[(z * cuts[1].size() + y) * cuts[0].size() + x] = int32_t(eval::treeLeafAt(part.tree.data(), t, box));
             }
-    return true;
 }
 
 NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, char* message, size_t messageSize) {
@@ -276,9 +271,7 @@ NradStatus load(const void* data, size_t size, uint32_t flags, NradAsset* out, c
     if (!a->partition.tree.empty()) {
         a->treeLeaves = treeLeafBoxes(a->partition);
         tagTree(a->partition, a->treeNodes, a->treeSplits, a->treeStarts);
-        uint32_t offset[3];
-        if (rectilinearTable(a->partition, a->rectAxis, a->rectLeaves, offset))
-            for (int k = 0; k < 3; ++k) a->rectOffset[k] = offset[k];
+        rectilinearTable(a->partition, a->rectAxis, a->rectLeaves, a->rectOffset);  // empty when too large
     }
     // A dense cell -> network table when it is small next to the networks themselves; else binary search.
     uint64_t voxels = a->partition.cells;

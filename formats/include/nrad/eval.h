@@ -212,6 +212,23 @@ inline std::vector<float> treeBandWidths(const uint32_t dims[3], const std::vect
     return width;
 }
 
+// The leaf holding lattice coordinate t (no blending: the planes alone), narrowing `box` (given as the
+// lattice's) to the leaf's.
+inline uint32_t treeLeafAt(const format::TreeNode* nodes, const float t[3], format::TreeBox& box) {
+    uint32_t at = 0;
+    while (nodes[at].axis != format::kTreeLeaf) {
+        const format::TreeNode& n = nodes[at];
+        if (t[n.axis] >= float(n.split)) {
+            box.lo[n.axis] = n.split;
+            at = n.child + 1;
+        } else {
+            box.hi[n.axis] = n.split;
+            at = n.child;
+        }
+    }
+    return nodes[at].child;
+}
+
 // The leaf holding p (no blending) and its lattice box; -1 outside the grid (or for a non-finite p).
 inline int64_t treeLeaf(const format::Grid& g, const float factor[3], const format::TreeNode* nodes, const float p[3],
                         format::TreeBox* box = nullptr) {
@@ -222,19 +239,9 @@ inline int64_t treeLeaf(const format::Grid& g, const float factor[3], const form
         t[k] = gridCoordinate(p[k], g.lower[k], factor[k]);
         b.hi[k] = g.dims[k];
     }
-    uint32_t at = 0;
-    while (nodes[at].axis != format::kTreeLeaf) {
-        const format::TreeNode& n = nodes[at];
-        if (t[n.axis] >= float(n.split)) {
-            b.lo[n.axis] = n.split;
-            at = n.child + 1;
-        } else {
-            b.hi[n.axis] = n.split;
-            at = n.child;
-        }
-    }
+    const uint32_t leaf = treeLeafAt(nodes, t, b);
     if (box) *box = b;
-    return nodes[at].child;
+    return leaf;
 }
 
 // Position input of grid coordinate t relative to the lattice interval [lo, hi) (2 (t - lo) / (hi - lo) - 1).
