@@ -34,8 +34,9 @@ struct IntegralSettings {
     uint32_t points = 0;  // per round; 0: 2,000 per network, at least 50,000
     uint32_t paths = 2;  // target estimates per point in a round
     // The start's training, short: it only has to give the first round's targets something to stand on (at
-    // most these epochs and patience, the first of TrainSettings::weightDecays only).
-    int startEpochs = 300, startPatience = 50;
+    // most these epochs and patience, the first of TrainSettings::weightDecays only). (300 epochs, with the
+    // command's 750 start points per cell, left the rounds a start they needed many of to undo: results.md.)
+    int startEpochs = 1000, startPatience = 50;
     // Initialisations per start network, the lowest held-out error kept (TrainSettings::restarts); 0: automatic,
     // 4 for bakes of 32 rounds or more (where the start costs little and one network's poor start, which the
     // rounds do not undo, is what remains), else 1 (restarts()).

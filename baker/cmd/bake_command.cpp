@@ -262,9 +262,10 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.integral = o.integral;
     // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
     if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
-    // ... and from 750 points per grid cell (at least 20,000) unless told.
+    // ... and from 1,500 points per grid cell (at least 40,000) unless told (docs/results.md: 750 left the rounds
+    // a start they needed many of to undo).
     if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints)
-        o.points = uint32_t(std::clamp<uint64_t>(750ull * s.grid.x * s.grid.y * s.grid.z, 20000, 4000000));
+        o.points = uint32_t(std::clamp<uint64_t>(1500ull * s.grid.x * s.grid.y * s.grid.z, 40000, 4000000));
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.nee.mode = o.nee;
@@ -459,7 +460,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
     cmd->add_option("--training", o->training,
                     "monte-carlo (default: each target from --paths full paths) or integral (within the integral equation: "
-                    "a short Monte Carlo start of --points points, default 750 per voxel, and --paths paths, default 4, then "
+                    "a short Monte Carlo start of --points points, default 1,500 per voxel, and --paths paths, default 4, then "
                     "rounds of fresh points whose targets are --bounces bounces with the networks for the rest of the path; "
                     "docs/training.md)");
     cmd->add_option("--generations", o->integral.generations, "Integral training: rounds after the Monte Carlo start (default 8)");
@@ -468,7 +469,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 4)");
     cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.01,0.0005)");
     cmd->add_option("--average-decay", o->integral.averageDecay, "Integral training: per-step decay of the networks' moving average, 0 = none (default 0.99)");
-    cmd->add_option("--start-epochs", o->integral.startEpochs, "Integral training: at most this many epochs for the Monte Carlo start (default 300)");
+    cmd->add_option("--start-epochs", o->integral.startEpochs, "Integral training: at most this many epochs for the Monte Carlo start (default 1000)");
     cmd->add_option("--start-restarts", o->integral.startRestarts,
                     "Integral training: initialisations of each start network, the lowest held-out error kept (default 0: 4 with 32 "
                     "rounds or more, else 1)");

@@ -45,9 +45,11 @@ inline uint32_t nestedUniformScramble(uint32_t x, uint32_t seed) {
     return reverseBits(laineKarrasPermutation(reverseBits(x), seed));
 }
 
-// Second Sobol dimension by bytes: XOR of the direction numbers of the set bits, 8 bits per lookup.
+// Second Sobol dimension by bytes: XOR of the direction numbers of the set bits, 8 bits per lookup; and the
+// same of the bit-reversed direction numbers (its bit reversal, what Owen scrambling works on).
 struct SobolDim1Tables {
     uint32_t byteTables[4][256];
+    uint32_t reversedByteTables[4][256];
     SobolDim1Tables() {
         uint32_t v[32];
         v[0] = 1u << 31;
@@ -58,6 +60,7 @@ struct SobolDim1Tables {
                 for (int bit = 0; bit < 8; ++bit)
                     if ((x >> bit) & 1u) r ^= v[b * 8 + bit];
                 byteTables[b][x] = r;
+                reversedByteTables[b][x] = reverseBits(r);
             }
     }
 };
@@ -70,18 +73,26 @@ inline uint32_t sobolDim1(uint32_t index) {
     return t[0][index & 255u] ^ t[1][(index >> 8) & 255u] ^ t[2][(index >> 16) & 255u] ^ t[3][index >> 24];
 }
 
+// reverseBits(sobolDim1(index)).
+inline uint32_t sobolDim1Reversed(uint32_t index) {
+    const auto& t = kSobolDim1Tables.reversedByteTables;
+    return t[0][index & 255u] ^ t[1][(index >> 8) & 255u] ^ t[2][(index >> 16) & 255u] ^ t[3][index >> 24];
+}
+
 inline float toUnitFloat(uint32_t x) { return float(x >> 8) * 0x1p-24f; }  // in [0, 1)
 
 class Sampler {
 public:
     // stream: e.g. a hash of the pixel; index: the sample number within that stream.
-    Sampler(uint32_t stream, uint32_t index) : stream_(stream), index_(index) {}
+    Sampler(uint32_t stream, uint32_t index) : stream_(stream), indexReversed_(reverseBits(index)) {}
 
-    // (Dimension 0 of Sobol is the bit reversal of the index, so its Owen scramble
-    // reverseBits(LK(reverseBits(reverseBits(i)))) is reverseBits(LK(i)): two reversals fewer, the same bits.)
+    // The same bits as the plain nested scrambles (sampler_test.cpp), with fewer bit reversals: the index's
+    // is done once per sampler; dimension 0 of Sobol is the bit reversal of the index, so its Owen scramble
+    // reverseBits(LK(reverseBits(reverseBits(i)))) is reverseBits(LK(i)); and dimension 1 comes from a table
+    // of reversed direction numbers, ready for its scramble.
     float get1D() {
         uint32_t seed = hashCombine(stream_, dimension_++);
-        uint32_t i = nestedUniformScramble(index_, seed);
+        uint32_t i = reverseBits(laineKarrasPermutation(indexReversed_, seed));
         return toUnitFloat(reverseBits(laineKarrasPermutation(i, seed * 0x9e3779b9u + 0x632be5abu)));
     }
 
@@ -89,16 +100,16 @@ public:
         // One hash per dimension pair; the three scrambles get distinct seeds by odd multipliers (the
         // Laine-Karras permutation mixes them thoroughly).
         uint32_t seed = hashCombine(stream_, dimension_++);
-        uint32_t i = nestedUniformScramble(index_, seed);
+        uint32_t i = reverseBits(laineKarrasPermutation(indexReversed_, seed));
         return {toUnitFloat(reverseBits(laineKarrasPermutation(i, seed * 0x9e3779b9u + 0x632be5abu))),
-                toUnitFloat(nestedUniformScramble(sobolDim1(i), seed * 0x85ebca6bu + 0x2c1b3c6du))};
+                toUnitFloat(reverseBits(laineKarrasPermutation(sobolDim1Reversed(i), seed * 0x85ebca6bu + 0x2c1b3c6du)))};
     }
 
     uint32_t dimension() const { return dimension_; }
 
 private:
     uint32_t stream_;
-    uint32_t index_;
+    uint32_t indexReversed_;
     uint32_t dimension_ = 0;
 };
 
