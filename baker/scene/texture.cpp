@@ -8,6 +8,7 @@ namespace nrad {
 namespace {
 
 int wrapIndex(int i, int n, WrapMode mode) {
+    if (i >= 0 && i < n) return i;  // inside the texture every mode leaves it: no divisions in the common case
     switch (mode) {
         case WrapMode::ClampToEdge:
             return i < 0 ? 0 : (i >= n ? n - 1 : i);
@@ -30,8 +31,9 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
     float x = uv.x * float(width) - 0.5f;
     float y = uv.y * float(height) - 0.5f;
     if (!std::isfinite(x) || !std::isfinite(y)) return average;
-    x = std::fmod(x, float(2 * width * 1024));
-    y = std::fmod(y, float(2 * height * 1024));
+    const float rangeX = float(2 * width * 1024), rangeY = float(2 * height * 1024);
+    if (!(std::abs(x) < rangeX)) x = std::fmod(x, rangeX);  // fmod leaves a smaller magnitude as it is
+    if (!(std::abs(y) < rangeY)) y = std::fmod(y, rangeY);
     float fx = std::floor(x), fy = std::floor(y);
     float tx = x - fx, ty = y - fy;
     int x0 = int(fx), y0 = int(fy);

@@ -32,6 +32,30 @@ TEST(Texture, RepeatAndMirror) {
     EXPECT_FLOAT_EQ(t.sample({1.25f, 0.5f}).x, 1.0f);  // mirrored: texel 1 again
 }
 
+// Coordinates far outside [0, 1) (reduced by fmod before the texel index wraps) and just outside it (wrapped
+// without reduction) give the texels their wrap mode says, for either sign.
+TEST(Texture, FarAndNearCoordinatesWrapAlike) {
+    Texture t = twoByOne();
+    t.wrapS = WrapMode::Repeat;
+    for (float u : {0.25f, 0.75f, 0.5f, 0.1f})
+        for (float k : {-5000.0f, -3.0f, -1.0f, 1.0f, 4.0f, 3000.0f}) {
+            SCOPED_TRACE(testing::Message() << "repeat u " << u << " + " << k);
+            EXPECT_NEAR(t.sample({u + k, 0.5f}).x, t.sample({u, 0.5f}).x, 2e-3f);
+        }
+    EXPECT_FLOAT_EQ(t.sample({1.0e6f + 0.25f, 0.5f}).x, 0.0f);  // exact in float: texel 0's centre
+    EXPECT_FLOAT_EQ(t.sample({-1.0e6f + 0.75f, 0.5f}).x, 1.0f);
+    t.wrapS = WrapMode::MirroredRepeat;
+    for (float u : {0.25f, 0.75f, 0.1f})
+        for (float k : {-6000.0f, -2.0f, 2.0f, 4000.0f}) {  // even periods: mirrored twice, the texture itself
+            SCOPED_TRACE(testing::Message() << "mirror u " << u << " + " << k);
+            EXPECT_NEAR(t.sample({u + k, 0.5f}).x, t.sample({u, 0.5f}).x, 2e-3f);
+        }
+    EXPECT_FLOAT_EQ(t.sample({-0.75f, 0.5f}).x, 1.0f);  // mirrored once: texel 1 at -0.75
+    t.wrapS = WrapMode::ClampToEdge;
+    EXPECT_FLOAT_EQ(t.sample({5000.0f, 0.5f}).x, 1.0f);
+    EXPECT_FLOAT_EQ(t.sample({-5000.0f, 0.5f}).x, 0.0f);
+}
+
 TEST(Texture, SrgbRoundTripAndKnownValues) {
     EXPECT_NEAR(srgbToLinear(0.5f), 0.214041f, 1e-5f);
     EXPECT_NEAR(srgbToLinear(1.0f), 1.0f, 1e-6f);
