@@ -3,6 +3,7 @@
 #include "baker/scene/gltf_loader.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -163,18 +164,43 @@ private:
             if (comp < 1 || comp > 4 || (bytes != 1 && bytes != 2) || img.image.size() < need)
                 fail("image " + std::to_string(t.source) + " has an unsupported pixel layout");
             tex.texels.resize(size_t(img.width) * size_t(img.height));
-            for (size_t i = 0; i < tex.texels.size(); ++i) {
-                float c[4] = {0, 0, 0, 1};
-                for (int k = 0; k < comp; ++k) {
-                    size_t off = (i * size_t(comp) + size_t(k)) * size_t(bytes);
-                    c[k] = bytes == 1 ? float(img.image[off]) / 255.0f
-                                      : float(uint16_t(img.image[off] | (img.image[off + 1] << 8))) / 65535.0f;
+            if (bytes == 1) {
+                // 8-bit channels through tables of the same conversions as below (the same bits, no pow per
+                // channel): colour from sRGB where the texture holds colour, alpha (a 2- or 4-channel image's
+                // last) always linear.
+                static const std::array<float, 256> unitOfByte = [] {
+                    std::array<float, 256> table{};
+                    for (int v = 0; v < 256; ++v) table[size_t(v)] = float(v) / 255.0f;
+                    return table;
+                }();
+                static const std::array<float, 256> linearOfSrgbByte = [] {
+                    std::array<float, 256> table{};
+                    for (int v = 0; v < 256; ++v) table[size_t(v)] = srgbToLinear(float(v) / 255.0f);
+                    return table;
+                }();
+                const std::array<float, 256>& colour = srgb ? linearOfSrgbByte : unitOfByte;
+                const unsigned char* px = img.image.data();
+                for (size_t i = 0; i < tex.texels.size(); ++i, px += comp) {
+                    switch (comp) {
+                        case 1: tex.texels[i] = glm::vec4(glm::vec3(colour[px[0]]), 1.0f); break;
+                        case 2: tex.texels[i] = glm::vec4(glm::vec3(colour[px[0]]), unitOfByte[px[1]]); break;
+                        case 3: tex.texels[i] = glm::vec4(colour[px[0]], colour[px[1]], colour[px[2]], 1.0f); break;
+                        default: tex.texels[i] = glm::vec4(colour[px[0]], colour[px[1]], colour[px[2]], unitOfByte[px[3]]); break;
+                    }
                 }
-                if (comp == 1) c[1] = c[2] = c[0];
-                if (comp == 2) { c[3] = c[1]; c[1] = c[2] = c[0]; }
-                if (srgb)
-                    for (int k = 0; k < 3; ++k) c[k] = srgbToLinear(c[k]);
-                tex.texels[i] = glm::vec4(c[0], c[1], c[2], c[3]);
+            } else {
+                for (size_t i = 0; i < tex.texels.size(); ++i) {
+                    float c[4] = {0, 0, 0, 1};
+                    for (int k = 0; k < comp; ++k) {
+                        size_t off = (i * size_t(comp) + size_t(k)) * 2;
+                        c[k] = float(uint16_t(img.image[off] | (img.image[off + 1] << 8))) / 65535.0f;
+                    }
+                    if (comp == 1) c[1] = c[2] = c[0];
+                    if (comp == 2) { c[3] = c[1]; c[1] = c[2] = c[0]; }
+                    if (srgb)
+                        for (int k = 0; k < 3; ++k) c[k] = srgbToLinear(c[k]);
+                    tex.texels[i] = glm::vec4(c[0], c[1], c[2], c[3]);
+                }
             }
         }
         if (t.sampler >= 0 && size_t(t.sampler) < model_.samplers.size()) {

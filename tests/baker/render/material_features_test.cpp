@@ -336,6 +336,32 @@ TEST(MaterialFeatures, VertexColoursAndTextureTransforms) {
     EXPECT_NEAR(si.bsdf.baseColor.z, 0.0f, 1e-6f);
 }
 
+// Every 8-bit value decodes as the transfer functions say, bit for bit: colour textures through sRGB
+// (srgbToLinear(v / 255)), data textures and alpha linearly (v / 255) (the loader converts bytes through
+// tables of these).
+TEST(MaterialFeatures, EveryByteDecodesAsItsTransferFunctionSays) {
+    const std::string dir = testing::TempDir();
+    Image ramp(256, 1);
+    std::vector<uint8_t> alpha(256);
+    for (int v = 0; v < 256; ++v) {
+        ramp.at(v, 0) = glm::vec3(float(v) / 255.0f, float(255 - v) / 255.0f, float(v) / 255.0f);
+        alpha[size_t(v)] = uint8_t(255 - v);
+    }
+    nlohmann::json m = lambertian(1.0f);
+    m["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+    m["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {{"index", 1}};
+    Scene scene = loadGltf(writeGltf(dir, "bytes", {Quad{}}, nlohmann::json::array({m}), {ramp, ramp}, {alpha, alpha}));
+    const Texture& colour = scene.textures[size_t(scene.materials[0].baseColorTexture.texture)];
+    const Texture& data = scene.textures[size_t(scene.materials[0].metallicRoughnessTexture.texture)];
+    ASSERT_EQ(colour.texels.size(), 256u);
+    ASSERT_EQ(data.texels.size(), 256u);
+    for (int v = 0; v < 256; ++v) {
+        const float u = float(v) / 255.0f, w = float(255 - v) / 255.0f;
+        ASSERT_EQ(colour.texels[size_t(v)], glm::vec4(srgbToLinear(u), srgbToLinear(w), srgbToLinear(u), w)) << v;
+        ASSERT_EQ(data.texels[size_t(v)], glm::vec4(u, w, u, w)) << v;
+    }
+}
+
 // KHR_materials_transmission (thin-walled): a Lambertian floor of albedo a under a clear, smooth, fully
 // transmissive sheet, all under a uniform sky of radiance 1, reflects a (less the sheet's GGX
 // single-scattering loss, < 1%); the same sheet opaque (a white Lambertian) lets the floor see far less sky.
