@@ -167,7 +167,8 @@ private:
             if (bytes == 1) {
                 // 8-bit channels through tables of the same conversions as below (the same bits, no pow per
                 // channel): colour from sRGB where the texture holds colour, alpha (a 2- or 4-channel image's
-                // last) always linear.
+                // last) always linear. (tinygltf expands 8-bit images to RGBA unless told to preserve their
+                // channels; the other counts are for when it does.)
                 static const std::array<float, 256> unitOfByte = [] {
                     std::array<float, 256> table{};
                     for (int v = 0; v < 256; ++v) table[size_t(v)] = float(v) / 255.0f;

@@ -38,8 +38,9 @@ struct Quad {
     glm::vec4 tangent{1, 0, 0, 1};
 };
 
-// A minimal 8-bit RGBA PNG: zlib "stored" blocks, no compression (so the test needs no image library).
-void writeRgbaPng(const std::string& path, int w, int h, const std::vector<unsigned char>& rgba) {
+// A minimal 8-bit PNG of 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA) channels: zlib "stored" blocks, no
+// compression (so the test needs no image library).
+void writePng(const std::string& path, int w, int h, int channels, const std::vector<unsigned char>& pixels) {
     auto crc = [](const std::vector<unsigned char>& d, size_t from) {
         uint32_t c = 0xffffffffu;
         for (size_t i = from; i < d.size(); ++i) {
@@ -62,12 +63,13 @@ void writeRgbaPng(const std::string& path, int w, int h, const std::vector<unsig
     std::vector<unsigned char> ihdr;
     be32(ihdr, uint32_t(w));
     be32(ihdr, uint32_t(h));
-    ihdr.insert(ihdr.end(), {8, 6, 0, 0, 0});
+    const unsigned char colourType[5] = {0, 0, 4, 2, 6};  // PNG colour type of each channel count
+    ihdr.insert(ihdr.end(), {8, colourType[channels], 0, 0, 0});
     chunk("IHDR", ihdr);
     std::vector<unsigned char> raw;
     for (int y = 0; y < h; ++y) {
         raw.push_back(0);  // filter: none
-        raw.insert(raw.end(), rgba.begin() + std::ptrdiff_t(y) * w * 4, rgba.begin() + std::ptrdiff_t(y + 1) * w * 4);
+        raw.insert(raw.end(), pixels.begin() + std::ptrdiff_t(y) * w * channels, pixels.begin() + std::ptrdiff_t(y + 1) * w * channels);
     }
     std::vector<unsigned char> z = {0x78, 0x01};
     for (size_t at = 0; at < raw.size() || at == 0;) {
@@ -152,7 +154,7 @@ std::string writeGltf(const std::string& dir, const std::string& name, const std
         }
         std::string png = name + "-" + std::to_string(i) + ".png";
         // PNG through the project's writer would sRGB-encode; write a minimal uncompressed one instead.
-        writeRgbaPng(dir + "/" + png, im.width, im.height, rgba);
+        writePng(dir + "/" + png, im.width, im.height, 4, rgba);
         imgs.push_back({{"uri", png}});
         textures.push_back({{"source", i}, {"sampler", 0}});
     }
@@ -336,9 +338,9 @@ TEST(MaterialFeatures, VertexColoursAndTextureTransforms) {
     EXPECT_NEAR(si.bsdf.baseColor.z, 0.0f, 1e-6f);
 }
 
-// Every 8-bit value decodes as the transfer functions say, bit for bit: colour textures through sRGB
-// (srgbToLinear(v / 255)), data textures and alpha linearly (v / 255) (the loader converts bytes through
-// tables of these).
+// Every 8-bit value decodes as the transfer functions say, bit for bit, from PNGs of every channel count:
+// colour textures through sRGB (srgbToLinear(v / 255)), data textures and alpha linearly (v / 255), grey
+// spread to RGB (tinygltf hands 8-bit images over as RGBA; the loader converts bytes through tables).
 TEST(MaterialFeatures, EveryByteDecodesAsItsTransferFunctionSays) {
     const std::string dir = testing::TempDir();
     Image ramp(256, 1);
@@ -347,18 +349,49 @@ TEST(MaterialFeatures, EveryByteDecodesAsItsTransferFunctionSays) {
         ramp.at(v, 0) = glm::vec3(float(v) / 255.0f, float(255 - v) / 255.0f, float(v) / 255.0f);
         alpha[size_t(v)] = uint8_t(255 - v);
     }
-    nlohmann::json m = lambertian(1.0f);
-    m["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
-    m["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {{"index", 1}};
-    Scene scene = loadGltf(writeGltf(dir, "bytes", {Quad{}}, nlohmann::json::array({m}), {ramp, ramp}, {alpha, alpha}));
-    const Texture& colour = scene.textures[size_t(scene.materials[0].baseColorTexture.texture)];
-    const Texture& data = scene.textures[size_t(scene.materials[0].metallicRoughnessTexture.texture)];
-    ASSERT_EQ(colour.texels.size(), 256u);
-    ASSERT_EQ(data.texels.size(), 256u);
+    // Textures 0, 1: RGBA (colour, data); 2: grey (colour); 3: grey and alpha (data); 4: RGB (colour).
+    nlohmann::json rgba = lambertian(1.0f), grey = lambertian(1.0f), rgb = lambertian(1.0f);
+    rgba["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+    rgba["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {{"index", 1}};
+    grey["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 2}};
+    grey["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {{"index", 3}};
+    rgb["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 4}};
+    Quad q0, q1, q2;
+    q1.material = 1;
+    q1.z = 1.0f;
+    q2.material = 2;
+    q2.z = 2.0f;
+    const std::string path = writeGltf(dir, "bytes", {q0, q1, q2}, nlohmann::json::array({rgba, grey, rgb}),
+                                       {ramp, ramp, ramp, ramp, ramp}, {alpha, alpha, alpha, alpha, alpha});
+    // Images 2-4 rewritten with fewer channels (the same file names).
+    std::vector<unsigned char> g(256), ga(512), c3(768);
+    for (int v = 0; v < 256; ++v) {
+        g[size_t(v)] = uint8_t(v);
+        ga[2 * size_t(v)] = uint8_t(v);
+        ga[2 * size_t(v) + 1] = uint8_t(255 - v);
+        c3[3 * size_t(v)] = uint8_t(v);
+        c3[3 * size_t(v) + 1] = uint8_t(255 - v);
+        c3[3 * size_t(v) + 2] = uint8_t(v);
+    }
+    writePng(dir + "/bytes-2.png", 256, 1, 1, g);
+    writePng(dir + "/bytes-3.png", 256, 1, 2, ga);
+    writePng(dir + "/bytes-4.png", 256, 1, 3, c3);
+    Scene scene = loadGltf(path);
+    auto texture = [&](const TextureRef& ref) -> const Texture& { return scene.textures[size_t(ref.texture)]; };
+    const Texture& colour4 = texture(scene.materials[0].baseColorTexture);
+    const Texture& data4 = texture(scene.materials[0].metallicRoughnessTexture);
+    const Texture& colour1 = texture(scene.materials[1].baseColorTexture);
+    const Texture& data2 = texture(scene.materials[1].metallicRoughnessTexture);
+    const Texture& colour3 = texture(scene.materials[2].baseColorTexture);
+    for (const Texture* t : {&colour4, &data4, &colour1, &data2, &colour3}) ASSERT_EQ(t->texels.size(), 256u);
     for (int v = 0; v < 256; ++v) {
         const float u = float(v) / 255.0f, w = float(255 - v) / 255.0f;
-        ASSERT_EQ(colour.texels[size_t(v)], glm::vec4(srgbToLinear(u), srgbToLinear(w), srgbToLinear(u), w)) << v;
-        ASSERT_EQ(data.texels[size_t(v)], glm::vec4(u, w, u, w)) << v;
+        const float cu = srgbToLinear(u), cw = srgbToLinear(w);
+        ASSERT_EQ(colour4.texels[size_t(v)], glm::vec4(cu, cw, cu, w)) << v;
+        ASSERT_EQ(data4.texels[size_t(v)], glm::vec4(u, w, u, w)) << v;
+        ASSERT_EQ(colour1.texels[size_t(v)], glm::vec4(cu, cu, cu, 1.0f)) << v;
+        ASSERT_EQ(data2.texels[size_t(v)], glm::vec4(u, u, u, w)) << v;
+        ASSERT_EQ(colour3.texels[size_t(v)], glm::vec4(cu, cw, cu, 1.0f)) << v;
     }
 }
 
