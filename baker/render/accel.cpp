@@ -1,6 +1,7 @@
 // Embree 3 scene for the flattened triangle mesh.
 #include "baker/render/accel.h"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -174,6 +175,55 @@ bool Accel::occluded(const glm::vec3& origin, const glm::vec3& direction, float 
     initRay(ray, origin, direction, tnear, tfar);
     rtcOccluded1(impl_->scene, &context, &ray);
     return ray.tfar < 0.0f;  // Embree marks an occluded ray with tfar = -inf
+}
+
+namespace {
+// Embree's streams are processed in chunks of this many rays (the stream's own packets are 16 wide or less).
+constexpr size_t kStreamChunk = 64;
+}  // namespace
+
+void Accel::intersect(const RayQuery* rays, size_t count, Hit* hits) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);  // RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT: the single-ray kernels' results
+    RTCRayHit chunk[kStreamChunk];
+    for (size_t start = 0; start < count; start += kStreamChunk) {
+        const size_t n = std::min(kStreamChunk, count - start);
+        for (size_t i = 0; i < n; ++i) {
+            const RayQuery& q = rays[start + i];
+            initRay(chunk[i].ray, q.origin, q.direction, q.tnear, q.tfar);
+            chunk[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            chunk[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
+            chunk[i].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect1M(impl_->scene, &context, chunk, unsigned(n), sizeof(RTCRayHit));
+        for (size_t i = 0; i < n; ++i) {
+            Hit& hit = hits[start + i];
+            hit = Hit{};
+            if (chunk[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            hit.t = chunk[i].ray.tfar;
+            hit.triangle = chunk[i].hit.primID;
+            hit.u = chunk[i].hit.u;
+            hit.v = chunk[i].hit.v;
+            const glm::vec4& face = impl_->faces[hit.triangle];
+            hit.ng = glm::vec3(face);
+            hit.margin = face.w;
+        }
+    }
+}
+
+void Accel::occluded(const RayQuery* rays, size_t count, uint8_t* blocked) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay chunk[kStreamChunk];
+    for (size_t start = 0; start < count; start += kStreamChunk) {
+        const size_t n = std::min(kStreamChunk, count - start);
+        for (size_t i = 0; i < n; ++i) {
+            const RayQuery& q = rays[start + i];
+            initRay(chunk[i], q.origin, q.direction, q.tnear, q.tfar);
+        }
+        rtcOccluded1M(impl_->scene, &context, chunk, unsigned(n), sizeof(RTCRay));
+        for (size_t i = 0; i < n; ++i) blocked[start + i] = chunk[i].tfar < 0.0f;
+    }
 }
 
 size_t Accel::traceRaw(const RecordedRay* rays, size_t count) const {

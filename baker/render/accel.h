@@ -35,6 +35,14 @@ struct Hit {
     bool valid() const { return triangle != UINT32_MAX; }
 };
 
+// One query of a batch: origin + t * direction for t in [tnear, tfar).
+struct RayQuery {
+    glm::vec3 origin{0.0f};
+    glm::vec3 direction{0.0f};
+    float tnear = 0.0f;
+    float tfar = std::numeric_limits<float>::infinity();
+};
+
 // A ray as the path tracer issued it, for replaying the same distribution in benchmarks.
 struct RecordedRay {
     glm::vec3 origin;
@@ -62,6 +70,12 @@ public:
                   float tfar = std::numeric_limits<float>::infinity()) const;
     // True if anything blocks the segment [tnear, tfar).
     bool occluded(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const;
+
+    // Many queries at once, through Embree's ray streams (rtcIntersect1M / rtcOccluded1M, incoherent): the
+    // same hits, bit for bit, as intersect() and occluded() one ray at a time (accel_test), at less cost per
+    // ray (docs/performance.md). blocked[i] is 1 where something blocks rays[i].
+    void intersect(const RayQuery* rays, size_t count, Hit* hits) const;
+    void occluded(const RayQuery* rays, size_t count, uint8_t* blocked) const;
 
     // Replays recorded rays through plain rtcIntersect1 / rtcOccluded1 and returns the number of hits:
     // the raw Embree throughput baseline the path tracer is measured against.

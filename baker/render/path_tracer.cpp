@@ -74,12 +74,11 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
 }
 
 namespace {
-// Whether light sample ls reaches si: its shadow ray (appended to `record` if given) finds no occluder.
-bool reachesPoint(const Accel& accel, const SurfaceInteraction& si, const LightSample& ls, std::vector<RecordedRay>* record) {
+// Whether light sample ls reaches si: its shadow ray finds no occluder.
+bool reachesPoint(const Accel& accel, const SurfaceInteraction& si, const LightSample& ls) {
     glm::vec3 o, dir;
     float tnear, tfar;
     shadowRay(si, ls, o, dir, tnear, tfar);
-    if (record) record->push_back({o, dir, tnear, tfar, true});
     // A segment shorter than the two margins holds no occluder: the light and the point are within a margin
     // of each other's planes (and the contribution is about zero).
     return !(tfar > tnear) || !accel.occluded(o, dir, tnear, tfar);
@@ -94,7 +93,7 @@ glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const Surfac
         LightSample ls = punctualLightSample(light, si.p);
         if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !sameSideRule(si, bsdf, ls.wi)) continue;
         glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
-        if (!isBlack(f) && reachesPoint(accel, si, ls, nullptr)) L += f * ls.Li;
+        if (!isBlack(f) && reachesPoint(accel, si, ls)) L += f * ls.Li;
     }
     return L;
 }
@@ -118,119 +117,208 @@ glm::vec3 PathTracer::scatteredRadiance(const SurfaceInteraction& si, Sampler& s
     return trace(si, sampler, 0, counters, nullptr, nullptr, std::max(1, bounces), &tail);
 }
 
+struct PathTracer::Path {
+    SurfaceInteraction si;  // the vertex reached
+    Sampler* sampler = nullptr;
+    glm::vec3 L{0.0f}, beta{1.0f};
+    float prevBsdfPdf = 0.0f;
+    glm::vec3 prevP{0.0f};
+    int depth = 0;  // segments traced before the one that reached si
+    // Group selection probabilities at this vertex and the previous one (for the MIS weight of an emitter
+    // that the previous vertex's BSDF sample hit); LightSampler::kMaxLightGroups each, used with a selector.
+    float* probs = nullptr;
+    float* prevProbs = nullptr;
+    // What scatter leaves for the rays: a shadow query and the contribution it decides (computed with the
+    // throughput before the BSDF sample changes it), and the extension ray.
+    bool shadowPending = false;
+    bool neePending = false;  // neeRecord goes to NeeTrace::records if the shadow ray is unblocked
+    glm::vec3 neeContribution{0.0f};
+    RayQuery shadow;
+    RayQuery extension;
+    NeeRecord neeRecord;
+};
+
+bool PathTracer::scatter(Path& p, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee,
+                         int cutDepth, const ScatteredRadiance* tail) const {
+    const SurfaceInteraction& si = p.si;
+    const int depth = p.depth;
+    p.shadowPending = p.neePending = false;
+    if (!isBlack(si.emission)) {
+        if (depth == 0) {
+            if (cutDepth == 0) p.L += p.beta * si.emission;  // scatteredRadiance leaves out si's own
+        } else {
+            float lightPdf;
+            if (selector_) {
+                int32_t g = lights_.groupOfTriangle(si.triangle);
+                lightPdf = g < 0 ? 0.0f : p.prevProbs[g] * lights_.pdfTriangleInGroup(si.triangle, p.prevP, si.p, si.ng);
+            } else {
+                lightPdf = lights_.pdfTriangle(si.triangle, p.prevP, si.p, si.ng);
+            }
+            p.L += p.beta * si.emission * powerHeuristic(p.prevBsdfPdf, lightPdf);
+        }
+    }
+    if (cutDepth > 0 && depth >= cutDepth && (depth >= cutDepth + kMaxSharpExtension || !sharpLobe(si.bsdf))) {
+        // What this vertex scatters towards the previous one, from the tail (emission was counted above).
+        glm::vec3 Ls = (*tail)(si);
+        if (excludeEngineDrawn_) Ls += engineDrawnDirect(scene_, accel_, si);
+        if (isFinite(Ls)) p.L += p.beta * Ls;
+        return false;
+    }
+    if (maxDepth > 0 && depth + 1 >= maxDepth) return false;
+
+    Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
+    const Bsdf::Outgoing out = bsdf.outgoing(si.wo);  // shared by this vertex's evaluations
+    // The sampler's dimensions are consumed in the same order at every vertex.
+    // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
+    // the chosen light's probability, is reused as the point's first coordinate, so the samples that
+    // choose a light are stratified over it (in every selection mode).
+    Sampler& sampler = *p.sampler;
+    glm::vec2 uLight = sampler.get2D();
+    glm::vec2 uBsdf = sampler.get2D();
+    glm::vec2 uLobeRoulette = sampler.get2D();  // BSDF lobe choice, Russian roulette
+    float uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
+
+    // Next event estimation.
+    bool recordHere = false;
+    int chosen = -1;
+    LightSample ls;
+    if (selector_ && lights_.groupCount() > 0) {
+        // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
+        const glm::vec3 cullNormal = bsdf.transmits() ? glm::vec3(0.0f) : si.ng;
+        recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, p.probs, &p.neeRecord) && nee && nee->records;
+        ls = selector_->sample(p.probs, uLight, si.p, chosen);
+        if (depth == 0 && nee) nee->firstLight = chosen;
+    } else if (!lights_.empty()) {
+        ls = lights_.sample(si.p, uLight);
+    }
+    // Mixed lighting: the engine adds the direct light of its own lights itself.
+    if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
+    if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
+        glm::vec3 f = bsdf.eval(out, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
+        if (!isBlack(f)) {
+            ++counters.shadow;
+            RayQuery& q = p.shadow;
+            shadowRay(si, ls, q.origin, q.direction, q.tnear, q.tfar);
+            if (record) record->push_back({q.origin, q.direction, q.tnear, q.tfar, true});
+            p.shadowPending = true;
+            float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(out, ls.wi));
+            p.neeContribution = p.beta * f * ls.Li * (w / ls.pdf);
+            if (recordHere) {
+                // The group's contribution estimate (without MIS weight) over the probability of having
+                // chosen it: the weight of the cross-entropy gradient.
+                glm::vec3 c = f * ls.Li;
+                p.neeRecord.light = uint32_t(chosen);
+                p.neeRecord.weight = (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z) / ls.pdf;
+                p.neePending = p.neeRecord.weight > 0.0f && std::isfinite(p.neeRecord.weight);
+            }
+        }
+    }
+
+    // Continue the path by sampling the BSDF.
+    BsdfSample bs = bsdf.sample(out, uLobe, uBsdf);
+    if (!bs.valid() || !sameSideRule(si, bsdf, bs.wi)) return false;
+    p.beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
+    if (isBlack(p.beta) || !isFinite(p.beta)) return false;
+    p.prevBsdfPdf = bs.pdf;
+    p.prevP = si.p;
+    std::swap(p.probs, p.prevProbs);
+    if (depth + 1 >= kRouletteStart && cutDepth == 0) {
+        float q = std::min(1.0f, maxComponent(p.beta) / rouletteThreshold_);
+        if (uRoulette >= q) return false;
+        p.beta /= q;
+    }
+    ++counters.extension;
+    p.extension = {si.p, bs.wi, si.spawnDistance(bs.wi), std::numeric_limits<float>::infinity()};
+    if (record) record->push_back({si.p, bs.wi, p.extension.tnear, p.extension.tfar, false});
+    return true;
+}
+
+void PathTracer::finishShadow(Path& p, bool blocked, NeeTrace* nee) const {
+    p.shadowPending = false;
+    if (blocked) return;
+    p.L += p.neeContribution;
+    if (p.neePending) nee->records->push_back(p.neeRecord);
+}
+
+bool PathTracer::arrive(Path& p, const Hit& hit) const {
+    if (!hit.valid()) {
+        // The ray leaves the scene: the environment and soft suns it meets, each weighted against having been
+        // sampled by NEE at the vertex it left.
+        lights_.forEachEscaped(p.extension.direction, [&](const glm::vec3& Le, float pdf, uint32_t group, float pdfInGroup) {
+            float lightPdf = selector_ ? p.prevProbs[group] * pdfInGroup : pdf;
+            p.L += p.beta * Le * powerHeuristic(p.prevBsdfPdf, lightPdf);
+        });
+        return false;
+    }
+    p.si = makeInteraction(scene_, hit, p.extension.direction);
+    ++p.depth;
+    return true;
+}
+
 glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
                             std::vector<RecordedRay>* record, NeeTrace* nee, int cutDepth,
                             const ScatteredRadiance* tail) const {
-    glm::vec3 L(0.0f), beta(1.0f);
-    float prevBsdfPdf = 0.0f;
-    glm::vec3 prevP(0.0f);
-    // Group selection probabilities at this vertex and the previous one (for the MIS weight of an emitter
-    // that the previous vertex's BSDF sample hit).
     float probsA[LightSampler::kMaxLightGroups], probsB[LightSampler::kMaxLightGroups];
-    float *probs = probsA, *prevProbs = probsB;
-    const size_t groups = selector_ ? lights_.groupCount() : 0;
-    for (int depth = 0;; ++depth) {  // depth = segments traced before the one that reached si
-        if (!isBlack(si.emission)) {
-            if (depth == 0) {
-                if (cutDepth == 0) L += beta * si.emission;  // scatteredRadiance leaves out si's own
-            } else {
-                float lightPdf;
-                if (selector_) {
-                    int32_t g = lights_.groupOfTriangle(si.triangle);
-                    lightPdf = g < 0 ? 0.0f : prevProbs[g] * lights_.pdfTriangleInGroup(si.triangle, prevP, si.p, si.ng);
-                } else {
-                    lightPdf = lights_.pdfTriangle(si.triangle, prevP, si.p, si.ng);
-                }
-                L += beta * si.emission * powerHeuristic(prevBsdfPdf, lightPdf);
-            }
+    Path p;
+    p.si = si;
+    p.sampler = &sampler;
+    p.probs = probsA;
+    p.prevProbs = probsB;
+    for (;;) {
+        const bool more = scatter(p, maxDepth, counters, record, nee, cutDepth, tail);
+        if (p.shadowPending) {
+            // A segment shorter than the two margins holds no occluder: the light and the point are within a
+            // margin of each other's planes (and the contribution is about zero).
+            const RayQuery& q = p.shadow;
+            finishShadow(p, q.tfar > q.tnear && accel_.occluded(q.origin, q.direction, q.tnear, q.tfar), nee);
         }
-        if (cutDepth > 0 && depth >= cutDepth && (depth >= cutDepth + kMaxSharpExtension || !sharpLobe(si.bsdf))) {
-            // What this vertex scatters towards the previous one, from the tail (emission was counted above).
-            glm::vec3 Ls = (*tail)(si);
-            if (excludeEngineDrawn_) Ls += engineDrawnDirect(scene_, accel_, si);
-            if (isFinite(Ls)) L += beta * Ls;
+        if (!more || !arrive(p, accel_.intersect(p.extension.origin, p.extension.direction, p.extension.tnear)))
             break;
-        }
-        if (maxDepth > 0 && depth + 1 >= maxDepth) break;
-
-        Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
-        const Bsdf::Outgoing out = bsdf.outgoing(si.wo);  // shared by this vertex's evaluations
-        // The sampler's dimensions are consumed in the same order at every vertex.
-        // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
-        // the chosen light's probability, is reused as the point's first coordinate, so the samples that
-        // choose a light are stratified over it (in every selection mode).
-        glm::vec2 uLight = sampler.get2D();
-        glm::vec2 uBsdf = sampler.get2D();
-        glm::vec2 uLobeRoulette = sampler.get2D();  // BSDF lobe choice, Russian roulette
-        float uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
-
-        // Next event estimation.
-        NeeRecord neeRecord;
-        bool recordHere = false;
-        int chosen = -1;
-        LightSample ls;
-        if (selector_ && groups > 0) {
-            // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
-            const glm::vec3 cullNormal = bsdf.transmits() ? glm::vec3(0.0f) : si.ng;
-            recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, probs, &neeRecord) && nee && nee->records;
-            ls = selector_->sample(probs, uLight, si.p, chosen);
-            if (depth == 0 && nee) nee->firstLight = chosen;
-        } else if (!lights_.empty()) {
-            ls = lights_.sample(si.p, uLight);
-        }
-        // Mixed lighting: the engine adds the direct light of its own lights itself.
-        if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
-        {
-            if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
-                glm::vec3 f = bsdf.eval(out, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
-                if (!isBlack(f)) {
-                    ++counters.shadow;
-                    if (reachesPoint(accel_, si, ls, record)) {
-                        float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(out, ls.wi));
-                        L += beta * f * ls.Li * (w / ls.pdf);
-                        if (recordHere) {
-                            // The group's contribution estimate (without MIS weight) over the probability
-                            // of having chosen it: the weight of the cross-entropy gradient.
-                            glm::vec3 c = f * ls.Li;
-                            neeRecord.light = uint32_t(chosen);
-                            neeRecord.weight = (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z) / ls.pdf;
-                            if (neeRecord.weight > 0.0f && std::isfinite(neeRecord.weight))
-                                nee->records->push_back(neeRecord);
-                        }
-                    }
-                }
-            }
-        }
-
-        // Continue the path by sampling the BSDF.
-        BsdfSample bs = bsdf.sample(out, uLobe, uBsdf);
-        if (!bs.valid() || !sameSideRule(si, bsdf, bs.wi)) break;
-        beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
-        if (isBlack(beta) || !isFinite(beta)) break;
-        prevBsdfPdf = bs.pdf;
-        prevP = si.p;
-        std::swap(probs, prevProbs);
-        if (depth + 1 >= kRouletteStart && cutDepth == 0) {
-            float q = std::min(1.0f, maxComponent(beta) / rouletteThreshold_);
-            if (uRoulette >= q) break;
-            beta /= q;
-        }
-        const float tnear = si.spawnDistance(bs.wi);
-        ++counters.extension;
-        if (record) record->push_back({si.p, bs.wi, tnear, std::numeric_limits<float>::infinity(), false});
-        Hit hit = accel_.intersect(si.p, bs.wi, tnear);
-        if (!hit.valid()) {
-            // The ray leaves the scene: the environment and soft suns it meets, each weighted against having
-            // been sampled by NEE here.
-            lights_.forEachEscaped(bs.wi, [&](const glm::vec3& Le, float pdf, uint32_t group, float pdfInGroup) {
-                float lightPdf = selector_ ? prevProbs[group] * pdfInGroup : pdf;
-                L += beta * Le * powerHeuristic(prevBsdfPdf, lightPdf);
-            });
-            break;
-        }
-        si = makeInteraction(scene_, hit, bs.wi);
     }
-    return L;
+    return p.L;
+}
+
+struct PathTracer::BatchScratch {
+    std::vector<uint32_t> active, shadowPaths, extensionPaths;
+    std::vector<RayQuery> queries;
+    std::vector<uint8_t> blocked;
+    std::vector<Hit> hits;
+};
+
+void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& counters, BatchScratch& scratch, int cutDepth,
+                            const ScatteredRadiance* tail) const {
+    std::vector<uint32_t>& active = scratch.active;
+    active.resize(n);
+    for (size_t i = 0; i < n; ++i) active[i] = uint32_t(i);
+    while (!active.empty()) {
+        // One vertex of every path still going, then all their shadow rays, then all their extension rays: the
+        // same operations on each path in the same order as trace(), so the same bits.
+        scratch.shadowPaths.clear();
+        scratch.extensionPaths.clear();
+        for (uint32_t i : active) {
+            Path& p = paths[i];
+            const bool more = scatter(p, maxDepth, counters, nullptr, nullptr, cutDepth, tail);
+            if (p.shadowPending) {
+                if (p.shadow.tfar > p.shadow.tnear)
+                    scratch.shadowPaths.push_back(i);
+                else
+                    finishShadow(p, false, nullptr);  // no room for an occluder (see trace)
+            }
+            if (more) scratch.extensionPaths.push_back(i);
+        }
+        const size_t shadows = scratch.shadowPaths.size(), extensions = scratch.extensionPaths.size();
+        scratch.queries.resize(std::max(shadows, extensions));
+        scratch.blocked.resize(shadows);
+        for (size_t k = 0; k < shadows; ++k) scratch.queries[k] = paths[scratch.shadowPaths[k]].shadow;
+        accel_.occluded(scratch.queries.data(), shadows, scratch.blocked.data());
+        for (size_t k = 0; k < shadows; ++k) finishShadow(paths[scratch.shadowPaths[k]], scratch.blocked[k] != 0, nullptr);
+        scratch.hits.resize(extensions);
+        for (size_t k = 0; k < extensions; ++k) scratch.queries[k] = paths[scratch.extensionPaths[k]].extension;
+        accel_.intersect(scratch.queries.data(), extensions, scratch.hits.data());
+        active.clear();
+        for (size_t k = 0; k < extensions; ++k)
+            if (arrive(paths[scratch.extensionPaths[k]], scratch.hits[k])) active.push_back(scratch.extensionPaths[k]);
+    }
 }
 
 bool PathTracer::viewable(const SurfaceInteraction& si) const {
@@ -254,28 +342,97 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
     RayCounters total;
     std::atomic<int> tilesDone{0};
 
+    const bool batched = settings.batchSize > 1;
+    const size_t batch = size_t(std::max(1, settings.batchSize));
+    const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
+
     tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
         RayCounters counters;
+        // The batched tracer's buffers, reused by the tiles of this range.
+        std::vector<uint32_t> streams;
+        std::vector<glm::dvec3> sums;
+        std::vector<Sampler> samplers;
+        std::vector<RayQuery> cameraRays;
+        std::vector<Hit> cameraHits;
+        std::vector<Path> paths;
+        std::vector<uint32_t> pathOf;  // per camera ray: its path, or UINT32_MAX where it saw the sky
+        std::vector<float> probs(probsPerPath * batch);
+        BatchScratch scratch;
         for (int tile = range.begin(); tile != range.end(); ++tile) {
             int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
             int x1 = std::min(x0 + ts, settings.width), y1 = std::min(y0 + ts, settings.height);
-            for (int y = y0; y < y1; ++y)
-                for (int x = x0; x < x1; ++x) {
-                    uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
-                    glm::dvec3 sum(0.0);
-                    for (int s = 0; s < settings.spp; ++s) {
-                        Sampler sampler(stream, uint32_t(s));
-                        glm::vec2 jitter = sampler.get2D();
-                        glm::vec3 o, d;
-                        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
-                        glm::vec3 L = radiance(o, d, sampler, settings.maxDepth, counters);
-                        if (isFinite(L))
-                            sum += glm::dvec3(L);
-                        else
-                            ++counters.nonFiniteSamples;
+            if (!batched) {
+                for (int y = y0; y < y1; ++y)
+                    for (int x = x0; x < x1; ++x) {
+                        uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
+                        glm::dvec3 sum(0.0);
+                        for (int s = 0; s < settings.spp; ++s) {
+                            Sampler sampler(stream, uint32_t(s));
+                            glm::vec2 jitter = sampler.get2D();
+                            glm::vec3 o, d;
+                            rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                            glm::vec3 L = radiance(o, d, sampler, settings.maxDepth, counters);
+                            if (isFinite(L))
+                                sum += glm::dvec3(L);
+                            else
+                                ++counters.nonFiniteSamples;
+                        }
+                        image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
                     }
-                    image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
-                }
+            } else {
+                // Sample by sample, the tile's pixels in batches: each pixel's samples are summed in the same
+                // order as above.
+                const int tw = x1 - x0;
+                const size_t pixels = size_t(tw) * size_t(y1 - y0);
+                streams.resize(pixels);
+                sums.assign(pixels, glm::dvec3(0.0));
+                for (size_t i = 0; i < pixels; ++i)
+                    streams[i] = pixelStream(uint32_t(x0 + int(i) % tw), uint32_t(y0 + int(i) / tw), settings.seed);
+                for (int s = 0; s < settings.spp; ++s)
+                    for (size_t first = 0; first < pixels; first += batch) {
+                        const size_t m = std::min(batch, pixels - first);
+                        samplers.clear();
+                        cameraRays.resize(m);
+                        cameraHits.resize(m);
+                        for (size_t k = 0; k < m; ++k) {
+                            const size_t i = first + k;
+                            samplers.emplace_back(streams[i], uint32_t(s));
+                            glm::vec2 jitter = samplers[k].get2D();
+                            rays.generate(float(x0 + int(i) % tw) + jitter.x, float(y0 + int(i) / tw) + jitter.y,
+                                          cameraRays[k].origin, cameraRays[k].direction);
+                        }
+                        counters.primary += m;
+                        accel_.intersect(cameraRays.data(), m, cameraHits.data());
+                        paths.clear();
+                        pathOf.resize(m);
+                        for (size_t k = 0; k < m; ++k) {
+                            if (!cameraHits[k].valid()) {
+                                pathOf[k] = UINT32_MAX;
+                                continue;
+                            }
+                            pathOf[k] = uint32_t(paths.size());
+                            Path& p = paths.emplace_back();
+                            p.si = makeInteraction(scene_, cameraHits[k], cameraRays[k].direction);
+                            p.sampler = &samplers[k];
+                            if (probsPerPath > 0) {
+                                p.probs = probs.data() + probsPerPath * k;
+                                p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
+                            }
+                        }
+                        traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
+                        for (size_t k = 0; k < m; ++k) {
+                            // The sky (and suns' disks) where the camera ray left the scene.
+                            const glm::vec3 L = pathOf[k] == UINT32_MAX ? skyRadiance(scene_, cameraRays[k].direction)
+                                                                        : paths[pathOf[k]].L;
+                            if (isFinite(L))
+                                sums[first + k] += glm::dvec3(L);
+                            else
+                                ++counters.nonFiniteSamples;
+                        }
+                    }
+                for (size_t i = 0; i < pixels; ++i)
+                    image.at(x0 + int(i) % tw, y0 + int(i) / tw) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
+            }
             int done = ++tilesDone;
             if (progress) progress(double(done) / double(tileCount));
         }

@@ -45,6 +45,10 @@ struct RenderSettings {
     int maxDepth = 0;  // maximum number of path segments (1 = emission seen directly); 0 = unbounded
     uint32_t seed = 0;
     int tileSize = 16;
+    // Paths traced together (a wavefront: one vertex of every path, then their shadow rays and their extension
+    // rays as Embree streams). The image is the same, bit for bit, for every batch size; 1 traces one path
+    // at a time (the plain reference the batched tracer is tested against).
+    int batchSize = 256;
 };
 
 struct RenderStats {
@@ -127,6 +131,21 @@ public:
     std::vector<RecordedRay> recordRays(const Camera& camera, const RenderSettings& settings) const;
 
 private:
+    struct Path;  // one path's state between its vertices (path_tracer.cpp)
+    struct BatchScratch;
+    // The parts of one path vertex, shared by the one-path tracer (trace) and the batched one (traceBatch).
+    // scatter: emission at p.si (MIS-weighted), the cut, next event estimation (a shadow query with its
+    // contribution, if one is needed) and the BSDF sample; returns whether the path goes on along
+    // p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive: the
+    // extension ray's hit (false: it left the scene, whose light is added).
+    bool scatter(Path& p, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee,
+                 int cutDepth, const ScatteredRadiance* tail) const;
+    void finishShadow(Path& p, bool blocked, NeeTrace* nee) const;
+    bool arrive(Path& p, const Hit& hit) const;
+    // Runs paths[0..n) (each with its interaction, sampler and selection buffers set) to their ends.
+    void traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& counters, BatchScratch& scratch, int cutDepth = 0,
+                    const ScatteredRadiance* tail = nullptr) const;
+
     // cutDepth > 0: the path ends at the vertex reached by that many bounces with `tail` (scatteredRadiance).
     glm::vec3 trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
                     std::vector<RecordedRay>* record, NeeTrace* nee, int cutDepth = 0,

@@ -7,7 +7,8 @@
 // 3. Renders the same image with the path tracer and counts its rays/s.
 // Prints both and their ratio, for one thread and for all threads; best of several repetitions.
 //
-// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R]
+// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R] [--batch B]
+// (--batch 1: the one-path tracer instead of the batched one)
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -74,6 +75,7 @@ int main(int argc, char** argv) {
         else if (a == "--spp") s.spp = next();
         else if (a == "--max-depth") s.maxDepth = next();
         else if (a == "--repeat") repeat = std::max(1, next());
+        else if (a == "--batch") s.batchSize = std::max(1, next());
         else scenePath = a;
     }
     Scene scene = loadGltf(scenePath);
@@ -84,8 +86,8 @@ int main(int argc, char** argv) {
 
     std::vector<RecordedRay> rays = tracer.recordRays(camera, s);
     size_t shadow = size_t(std::count_if(rays.begin(), rays.end(), [](const RecordedRay& r) { return r.shadow; }));
-    std::printf("scene %s, %dx%d, %d spp, max depth %d: %zu rays recorded (%zu closest-hit, %zu shadow)\n",
-                scenePath.c_str(), s.width, s.height, s.spp, s.maxDepth, rays.size(), rays.size() - shadow, shadow);
+    std::printf("scene %s, %dx%d, %d spp, max depth %d, batches of %d paths: %zu rays recorded (%zu closest-hit, %zu shadow)\n",
+                scenePath.c_str(), s.width, s.height, s.spp, s.maxDepth, s.batchSize, rays.size(), rays.size() - shadow, shadow);
     std::printf("%-8s %16s %16s %8s\n", "threads", "Embree Mrays/s", "tracer Mrays/s", "ratio");
     int hw = int(std::max(1u, std::thread::hardware_concurrency()));
     for (int threads : {1, hw}) {
