@@ -158,9 +158,15 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     std::vector<uint8_t> valid(requests.size(), 0);
     std::atomic<size_t> done{0};
     std::mutex statsMutex;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), 8), [&](const tbb::blocked_range<size_t>& range) {
+    // Ranges of enough points for a few hundred paths (the tracer's batches); the samples do not depend on them.
+    const size_t grain = std::max<size_t>(8, 256 / std::max<uint32_t>(1, settings.paths));
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), grain), [&](const tbb::blocked_range<size_t>& range) {
         RayCounters counters;
         uint64_t nonFinite = 0;
+        // The range's points, then all their paths traced together (PathTracer::estimate, in batches).
+        std::vector<size_t> points;
+        std::vector<SurfaceInteraction> starts;
+        std::vector<glm::vec3> pointWo, pointP;
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const PointRequest& r = requests[i];
             const SurfacePiece& piece = pieces.pieces()[r.piece];
@@ -173,12 +179,27 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 if (surfaceOpacity(scene, piece.triangle, b1, b2) <= 0.0f) continue;
             }
             if (hidden[i]) continue;
+            points.push_back(i);
+            starts.push_back(si);
+            pointP.push_back(p);
+            pointWo.push_back(wo);
+        }
+        std::vector<PathStart> paths;
+        paths.reserve(points.size() * settings.paths);
+        for (size_t k = 0; k < points.size(); ++k)
+            for (uint32_t j = 0; j < settings.paths; ++j) paths.push_back({&starts[k], requests[points[k]].pathStream, j});
+        std::vector<glm::vec3> estimates(paths.size());
+        tracer.estimate(paths.data(), paths.size(), settings.maxDepth, estimator.tail, estimator.bounces, counters,
+                        estimates.data());
+        for (size_t k = 0; k < points.size(); ++k) {
+            const size_t i = points[k];
+            const SurfacePiece& piece = pieces.pieces()[requests[i].piece];
+            const SurfaceInteraction& si = starts[k];
+            const glm::vec3 &p = pointP[k], &wo = pointWo[k];
             glm::dvec3 sum(0.0);
             uint32_t finite = 0;
             for (uint32_t j = 0; j < settings.paths; ++j) {
-                Sampler ps(r.pathStream, j);
-                glm::vec3 L = estimator.tail ? tracer.scatteredRadiance(si, ps, estimator.bounces, *estimator.tail, counters)
-                                             : tracer.outgoingRadiance(si, ps, settings.maxDepth, counters);
+                const glm::vec3& L = estimates[k * settings.paths + j];
                 if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) {
                     sum += glm::dvec3(L);
                     ++finite;

@@ -138,8 +138,8 @@ struct PathTracer::Path {
     NeeRecord neeRecord;
 };
 
-bool PathTracer::scatter(Path& p, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee,
-                         int cutDepth, const ScatteredRadiance* tail) const {
+bool PathTracer::scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record,
+                         NeeTrace* nee, int cutDepth, const ScatteredRadiance* tail) const {
     const SurfaceInteraction& si = p.si;
     const int depth = p.depth;
     p.shadowPending = p.neePending = false;
@@ -172,10 +172,15 @@ bool PathTracer::scatter(Path& p, int maxDepth, RayCounters& counters, std::vect
     // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
     // the chosen light's probability, is reused as the point's first coordinate, so the samples that
     // choose a light are stratified over it (in every selection mode).
-    Sampler& sampler = *p.sampler;
-    glm::vec2 uLight = sampler.get2D();
-    glm::vec2 uBsdf = sampler.get2D();
-    glm::vec2 uLobeRoulette = sampler.get2D();  // BSDF lobe choice, Russian roulette
+    // u: the three 2D points, drawn for a whole batch at once (nextThree2D), or here.
+    glm::vec2 drawn[3];
+    if (!u) {
+        for (glm::vec2& d : drawn) d = p.sampler->get2D();
+        u = drawn;
+    }
+    glm::vec2 uLight = u[0];
+    glm::vec2 uBsdf = u[1];
+    glm::vec2 uLobeRoulette = u[2];  // BSDF lobe choice, Russian roulette
     float uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
 
     // Next event estimation.
@@ -265,7 +270,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
     p.probs = probsA;
     p.prevProbs = probsB;
     for (;;) {
-        const bool more = scatter(p, maxDepth, counters, record, nee, cutDepth, tail);
+        const bool more = scatter(p, nullptr, maxDepth, counters, record, nee, cutDepth, tail);
         if (p.shadowPending) {
             // A segment shorter than the two margins holds no occluder: the light and the point are within a
             // margin of each other's planes (and the contribution is about zero).
@@ -283,6 +288,8 @@ struct PathTracer::BatchScratch {
     std::vector<RayQuery> queries;
     std::vector<uint8_t> blocked;
     std::vector<Hit> hits;
+    std::vector<Sampler*> samplers;
+    std::vector<glm::vec2> points;
 };
 
 void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& counters, BatchScratch& scratch, int cutDepth,
@@ -295,9 +302,15 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         // same operations on each path in the same order as trace(), so the same bits.
         scratch.shadowPaths.clear();
         scratch.extensionPaths.clear();
-        for (uint32_t i : active) {
+        // The vertex's three 2D points of every path (those whose path ends before it draws them go unused).
+        scratch.samplers.resize(active.size());
+        scratch.points.resize(3 * active.size());
+        for (size_t k = 0; k < active.size(); ++k) scratch.samplers[k] = paths[active[k]].sampler;
+        nextThree2D(scratch.samplers.data(), active.size(), scratch.points.data());
+        for (size_t k = 0; k < active.size(); ++k) {
+            const uint32_t i = active[k];
             Path& p = paths[i];
-            const bool more = scatter(p, maxDepth, counters, nullptr, nullptr, cutDepth, tail);
+            const bool more = scatter(p, &scratch.points[3 * k], maxDepth, counters, nullptr, nullptr, cutDepth, tail);
             if (p.shadowPending) {
                 if (p.shadow.tfar > p.shadow.tnear)
                     scratch.shadowPaths.push_back(i);
@@ -318,6 +331,39 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         active.clear();
         for (size_t k = 0; k < extensions; ++k)
             if (arrive(paths[scratch.extensionPaths[k]], scratch.hits[k])) active.push_back(scratch.extensionPaths[k]);
+    }
+}
+
+void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const ScatteredRadiance* tail, int bounces,
+                          RayCounters& counters, glm::vec3* out) const {
+    constexpr size_t kBatch = 256;
+    const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
+    std::vector<Sampler> samplers;
+    std::vector<Path> paths;
+    std::vector<float> probs(probsPerPath * std::min(n, kBatch));
+    BatchScratch scratch;
+    samplers.reserve(std::min(n, kBatch));
+    for (size_t first = 0; first < n; first += kBatch) {
+        const size_t m = std::min(kBatch, n - first);
+        samplers.clear();
+        paths.resize(m);
+        for (size_t k = 0; k < m; ++k) {
+            const PathStart& start = starts[first + k];
+            samplers.emplace_back(start.stream, start.index);
+            Path& p = paths[k];
+            p = Path{};
+            p.si = *start.si;
+            p.sampler = &samplers[k];
+            if (probsPerPath > 0) {
+                p.probs = probs.data() + probsPerPath * k;
+                p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
+            }
+        }
+        if (tail)
+            traceBatch(paths.data(), m, 0, counters, scratch, std::max(1, bounces), tail);
+        else
+            traceBatch(paths.data(), m, maxDepth, counters, scratch);
+        for (size_t k = 0; k < m; ++k) out[first + k] = paths[k].L;
     }
 }
 
@@ -380,7 +426,7 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                         image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
                     }
             } else {
-                // Sample by sample, the tile's pixels in batches: each pixel's samples are summed in the same
+                // The tile's samples in batches, sample by sample: each pixel's samples are summed in the same
                 // order as above.
                 const int tw = x1 - x0;
                 const size_t pixels = size_t(tw) * size_t(y1 - y0);
@@ -388,48 +434,49 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                 sums.assign(pixels, glm::dvec3(0.0));
                 for (size_t i = 0; i < pixels; ++i)
                     streams[i] = pixelStream(uint32_t(x0 + int(i) % tw), uint32_t(y0 + int(i) / tw), settings.seed);
-                for (int s = 0; s < settings.spp; ++s)
-                    for (size_t first = 0; first < pixels; first += batch) {
-                        const size_t m = std::min(batch, pixels - first);
-                        samplers.clear();
-                        cameraRays.resize(m);
-                        cameraHits.resize(m);
-                        for (size_t k = 0; k < m; ++k) {
-                            const size_t i = first + k;
-                            samplers.emplace_back(streams[i], uint32_t(s));
-                            glm::vec2 jitter = samplers[k].get2D();
-                            rays.generate(float(x0 + int(i) % tw) + jitter.x, float(y0 + int(i) / tw) + jitter.y,
-                                          cameraRays[k].origin, cameraRays[k].direction);
+                // Path q is sample q / pixels of pixel q % pixels: batches run through the samples in order.
+                const size_t count = pixels * size_t(std::max(0, settings.spp));
+                for (size_t first = 0; first < count; first += batch) {
+                    const size_t m = std::min(batch, count - first);
+                    samplers.clear();
+                    cameraRays.resize(m);
+                    cameraHits.resize(m);
+                    for (size_t k = 0; k < m; ++k) {
+                        const size_t i = (first + k) % pixels;
+                        samplers.emplace_back(streams[i], uint32_t((first + k) / pixels));
+                        glm::vec2 jitter = samplers[k].get2D();
+                        rays.generate(float(x0 + int(i) % tw) + jitter.x, float(y0 + int(i) / tw) + jitter.y,
+                                      cameraRays[k].origin, cameraRays[k].direction);
+                    }
+                    counters.primary += m;
+                    accel_.intersect(cameraRays.data(), m, cameraHits.data());
+                    paths.clear();
+                    pathOf.resize(m);
+                    for (size_t k = 0; k < m; ++k) {
+                        if (!cameraHits[k].valid()) {
+                            pathOf[k] = UINT32_MAX;
+                            continue;
                         }
-                        counters.primary += m;
-                        accel_.intersect(cameraRays.data(), m, cameraHits.data());
-                        paths.clear();
-                        pathOf.resize(m);
-                        for (size_t k = 0; k < m; ++k) {
-                            if (!cameraHits[k].valid()) {
-                                pathOf[k] = UINT32_MAX;
-                                continue;
-                            }
-                            pathOf[k] = uint32_t(paths.size());
-                            Path& p = paths.emplace_back();
-                            p.si = makeInteraction(scene_, cameraHits[k], cameraRays[k].direction);
-                            p.sampler = &samplers[k];
-                            if (probsPerPath > 0) {
-                                p.probs = probs.data() + probsPerPath * k;
-                                p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
-                            }
-                        }
-                        traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
-                        for (size_t k = 0; k < m; ++k) {
-                            // The sky (and suns' disks) where the camera ray left the scene.
-                            const glm::vec3 L = pathOf[k] == UINT32_MAX ? skyRadiance(scene_, cameraRays[k].direction)
-                                                                        : paths[pathOf[k]].L;
-                            if (isFinite(L))
-                                sums[first + k] += glm::dvec3(L);
-                            else
-                                ++counters.nonFiniteSamples;
+                        pathOf[k] = uint32_t(paths.size());
+                        Path& p = paths.emplace_back();
+                        p.si = makeInteraction(scene_, cameraHits[k], cameraRays[k].direction);
+                        p.sampler = &samplers[k];
+                        if (probsPerPath > 0) {
+                            p.probs = probs.data() + probsPerPath * k;
+                            p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
                         }
                     }
+                    traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
+                    for (size_t k = 0; k < m; ++k) {
+                        // The sky (and suns' disks) where the camera ray left the scene.
+                        const glm::vec3 L = pathOf[k] == UINT32_MAX ? skyRadiance(scene_, cameraRays[k].direction)
+                                                                    : paths[pathOf[k]].L;
+                        if (isFinite(L))
+                            sums[(first + k) % pixels] += glm::dvec3(L);
+                        else
+                            ++counters.nonFiniteSamples;
+                    }
+                }
                 for (size_t i = 0; i < pixels; ++i)
                     image.at(x0 + int(i) % tw, y0 + int(i) / tw) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
             }

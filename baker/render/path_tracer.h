@@ -69,6 +69,13 @@ struct NeeTrace {
 // the radiance the surface at an interaction scatters towards its wo, without its own emission.
 using ScatteredRadiance = std::function<glm::vec3(const SurfaceInteraction&)>;
 
+// One path of a batch (PathTracer::estimate): from the interaction *si, with Sampler(stream, index).
+struct PathStart {
+    const SurfaceInteraction* si = nullptr;
+    uint32_t stream = 0;
+    uint32_t index = 0;
+};
+
 // The shadow ray that tests whether light sample `ls` reaches the surface point `si`: origin, unit direction
 // and the interval [tnear, tfar) in which an occluder blocks it (none if tfar <= tnear). Robust at grazing
 // angles and at any scene scale or distance from the origin (issue 12).
@@ -116,6 +123,12 @@ public:
     glm::vec3 scatteredRadiance(const SurfaceInteraction& si, Sampler& sampler, int bounces, const ScatteredRadiance& tail,
                                 RayCounters& counters) const;
 
+    // outgoingRadiance (tail == nullptr, with maxDepth) or scatteredRadiance (with tail and bounces) for many
+    // paths, traced in batches as render() traces camera paths: out[i] has the bits the one-path call gives
+    // for starts[i].
+    void estimate(const PathStart* starts, size_t n, int maxDepth, const ScatteredRadiance* tail, int bounces,
+                  RayCounters& counters, glm::vec3* out) const;
+
     // Whether a viewer can ever ask for the radiance leaving si towards si.wo: false when the ray from si.p
     // along wo first meets the back of an opaque single-sided surface, i.e. the viewer would stand inside a
     // closed object or behind a surface lying on this one (the floor under a box, the ceiling 0.1 mm above a
@@ -138,8 +151,9 @@ private:
     // contribution, if one is needed) and the BSDF sample; returns whether the path goes on along
     // p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive: the
     // extension ray's hit (false: it left the scene, whose light is added).
-    bool scatter(Path& p, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record, NeeTrace* nee,
-                 int cutDepth, const ScatteredRadiance* tail) const;
+    // u: the vertex's three 2D sample points, nullptr to draw them from p's sampler.
+    bool scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record,
+                 NeeTrace* nee, int cutDepth, const ScatteredRadiance* tail) const;
     void finishShadow(Path& p, bool blocked, NeeTrace* nee) const;
     bool arrive(Path& p, const Hit& hit) const;
     // Runs paths[0..n) (each with its interaction, sampler and selection buffers set) to their ends.
