@@ -182,9 +182,10 @@ namespace {
 constexpr size_t kStreamChunk = 64;
 }  // namespace
 
-void Accel::intersect(const RayQuery* rays, size_t count, Hit* hits) const {
+void Accel::intersect(const RayQuery* rays, size_t count, Hit* hits, bool coherent) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);  // RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT: the single-ray kernels' results
+    if (coherent) context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     RTCRayHit chunk[kStreamChunk];
     for (size_t start = 0; start < count; start += kStreamChunk) {
         const size_t n = std::min(kStreamChunk, count - start);

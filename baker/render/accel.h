@@ -72,9 +72,11 @@ public:
     bool occluded(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const;
 
     // Many queries at once, through Embree's ray streams (rtcIntersect1M / rtcOccluded1M, incoherent): the
-    // same hits, bit for bit, as intersect() and occluded() one ray at a time (accel_test), at less cost per
-    // ray (docs/performance.md). blocked[i] is 1 where something blocks rays[i].
-    void intersect(const RayQuery* rays, size_t count, Hit* hits) const;
+    // same hits, bit for bit, as intersect() and occluded() one ray at a time (path_tracer_test), at less cost
+    // per ray (docs/performance.md). blocked[i] is 1 where something blocks rays[i]. coherent: rays that start
+    // together and point alike (camera rays) in Embree's packets, faster for them, but the packet kernels'
+    // hits differ from the single-ray ones in the last bits now and then.
+    void intersect(const RayQuery* rays, size_t count, Hit* hits, bool coherent = false) const;
     void occluded(const RayQuery* rays, size_t count, uint8_t* blocked) const;
 
     // Replays recorded rays through plain rtcIntersect1 / rtcOccluded1 and returns the number of hits:

@@ -449,7 +449,7 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                                       cameraRays[k].origin, cameraRays[k].direction);
                     }
                     counters.primary += m;
-                    accel_.intersect(cameraRays.data(), m, cameraHits.data());
+                    accel_.intersect(cameraRays.data(), m, cameraHits.data(), settings.coherentCameraRays);
                     paths.clear();
                     pathOf.resize(m);
                     for (size_t k = 0; k < m; ++k) {
