@@ -71,7 +71,8 @@ public:
     // Local-frame pieces, exposed for tests.
     float specularProbability(float cosThetaO) const;
     float transmissionProbability(float cosThetaO) const;
-    bool transmits() const { return p_.transmission > 0.0f && p_.metallic < 1.0f; }
+    bool transmits() const { return transmits(p_); }
+    static bool transmits(const BsdfParams& p) { return p.transmission > 0.0f && p.metallic < 1.0f; }
     // Largest channel of the dielectric Schlick Fresnel at the macro normal.
     float macroFresnel(float cosTheta) const;
     static float ggxD(float cosThetaH, float alpha);

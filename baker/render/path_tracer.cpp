@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/render/bsdf.h"
+#include "baker/render/bsdf_lanes.h"
 #include "baker/render/camera.h"
 #include "baker/render/surface.h"
 
@@ -30,10 +31,10 @@ inline float maxComponent(const glm::vec3& v) { return std::max(v.x, std::max(v.
 // Whether light may travel along wi at si: above the geometric surface (the side of wo), or, through a
 // transmissive surface, below it too, as long as the geometric and the shading normal agree on the side
 // (otherwise light would leak through the shading normal's interpolation).
-inline bool sameSideRule(const SurfaceInteraction& si, const Bsdf& bsdf, const glm::vec3& wi) {
+inline bool sameSideRule(const SurfaceInteraction& si, bool transmits, const glm::vec3& wi) {
     float g = glm::dot(wi, si.ng);
     if (g > 0.0f) return true;
-    return g < 0.0f && bsdf.transmits() && glm::dot(wi, si.ns) < 0.0f;
+    return g < 0.0f && transmits && glm::dot(wi, si.ns) < 0.0f;
 }
 
 // Russian roulette starts after this many segments.
@@ -91,7 +92,7 @@ glm::vec3 engineDrawnDirect(const Scene& scene, const Accel& accel, const Surfac
     for (const PunctualLight& light : scene.lights) {
         if (!light.runtimeDirect) continue;
         LightSample ls = punctualLightSample(light, si.p);
-        if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !sameSideRule(si, bsdf, ls.wi)) continue;
+        if (!(ls.pdf > 0.0f) || isBlack(ls.Li) || !sameSideRule(si, bsdf.transmits(), ls.wi)) continue;
         glm::vec3 f = bsdf.eval(si.wo, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
         if (!isBlack(f) && reachesPoint(accel, si, ls)) L += f * ls.Li;
     }
@@ -136,13 +137,26 @@ struct PathTracer::Path {
     RayQuery shadow;
     RayQuery extension;
     NeeRecord neeRecord;
+    // Between scatterBegin and scatterEnd: the vertex's sample points, its light sample, and what shade()
+    // computes of the BSDF (the light sample's value and pdf, the BSDF sample).
+    int cutDepth = 0;
+    glm::vec2 uBsdf{0.0f};
+    float uLobe = 0.0f, uRoulette = 0.0f;
+    bool transmits = false;
+    bool neeCandidate = false;  // the light sample needs the BSDF: it may contribute
+    bool recordHere = false;
+    int chosen = -1;
+    LightSample ls;
+    glm::vec3 neeEval{0.0f};
+    float neePdf = 0.0f;
+    BsdfSample bs;
 };
 
-bool PathTracer::scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record,
-                         NeeTrace* nee, int cutDepth, const ScatteredRadiance* tail) const {
+bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, int cutDepth,
+                              const ScatteredRadiance* tail) const {
     const SurfaceInteraction& si = p.si;
     const int depth = p.depth;
-    p.shadowPending = p.neePending = false;
+    p.shadowPending = p.neePending = p.neeCandidate = false;
     if (!isBlack(si.emission)) {
         if (depth == 0) {
             if (cutDepth == 0) p.L += p.beta * si.emission;  // scatteredRadiance leaves out si's own
@@ -166,8 +180,6 @@ bool PathTracer::scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters&
     }
     if (maxDepth > 0 && depth + 1 >= maxDepth) return false;
 
-    Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
-    const Bsdf::Outgoing out = bsdf.outgoing(si.wo);  // shared by this vertex's evaluations
     // The sampler's dimensions are consumed in the same order at every vertex.
     // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
     // the chosen light's probability, is reused as the point's first coordinate, so the samples that
@@ -178,41 +190,61 @@ bool PathTracer::scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters&
         for (glm::vec2& d : drawn) d = p.sampler->get2D();
         u = drawn;
     }
-    glm::vec2 uLight = u[0];
-    glm::vec2 uBsdf = u[1];
-    glm::vec2 uLobeRoulette = u[2];  // BSDF lobe choice, Russian roulette
-    float uLobe = uLobeRoulette.x, uRoulette = uLobeRoulette.y;
+    const glm::vec2 uLight = u[0];
+    p.uBsdf = u[1];
+    p.uLobe = u[2].x;  // BSDF lobe choice
+    p.uRoulette = u[2].y;  // Russian roulette
+    p.transmits = Bsdf::transmits(si.bsdf);
 
-    // Next event estimation.
-    bool recordHere = false;
-    int chosen = -1;
-    LightSample ls;
+    // Next event estimation: the light sample (its BSDF terms come from shade()).
+    p.recordHere = false;
+    p.chosen = -1;
+    LightSample& ls = p.ls;
+    ls = LightSample{};
     if (selector_ && lights_.groupCount() > 0) {
         // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
-        const glm::vec3 cullNormal = bsdf.transmits() ? glm::vec3(0.0f) : si.ng;
-        recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, p.probs, &p.neeRecord) && nee && nee->records;
-        ls = selector_->sample(p.probs, uLight, si.p, chosen);
-        if (depth == 0 && nee) nee->firstLight = chosen;
+        const glm::vec3 cullNormal = p.transmits ? glm::vec3(0.0f) : si.ng;
+        p.recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, p.probs, &p.neeRecord) && nee && nee->records;
+        ls = selector_->sample(p.probs, uLight, si.p, p.chosen);
+        if (depth == 0 && nee) nee->firstLight = p.chosen;
     } else if (!lights_.empty()) {
         ls = lights_.sample(si.p, uLight);
     }
     // Mixed lighting: the engine adds the direct light of its own lights itself.
     if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
-    if (ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, bsdf, ls.wi)) {
-        glm::vec3 f = bsdf.eval(out, ls.wi) * std::abs(glm::dot(ls.wi, si.ns));
+    p.neeCandidate = ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, p.transmits, ls.wi);
+    return true;
+}
+
+void PathTracer::shade(Path& p) {
+    const SurfaceInteraction& si = p.si;
+    Bsdf bsdf(Frame::fromNormal(si.ns), si.bsdf);
+    const Bsdf::Outgoing out = bsdf.outgoing(si.wo);  // shared by this vertex's evaluations
+    if (p.neeCandidate) {
+        p.neeEval = bsdf.eval(out, p.ls.wi);
+        p.neePdf = bsdf.pdf(out, p.ls.wi);
+    }
+    p.bs = bsdf.sample(out, p.uLobe, p.uBsdf);
+}
+
+bool PathTracer::scatterEnd(Path& p, RayCounters& counters, std::vector<RecordedRay>* record) const {
+    const SurfaceInteraction& si = p.si;
+    const LightSample& ls = p.ls;
+    if (p.neeCandidate) {
+        glm::vec3 f = p.neeEval * std::abs(glm::dot(ls.wi, si.ns));
         if (!isBlack(f)) {
             ++counters.shadow;
             RayQuery& q = p.shadow;
             shadowRay(si, ls, q.origin, q.direction, q.tnear, q.tfar);
             if (record) record->push_back({q.origin, q.direction, q.tnear, q.tfar, true});
             p.shadowPending = true;
-            float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, bsdf.pdf(out, ls.wi));
+            float w = ls.delta ? 1.0f : powerHeuristic(ls.pdf, p.neePdf);
             p.neeContribution = p.beta * f * ls.Li * (w / ls.pdf);
-            if (recordHere) {
+            if (p.recordHere) {
                 // The group's contribution estimate (without MIS weight) over the probability of having
                 // chosen it: the weight of the cross-entropy gradient.
                 glm::vec3 c = f * ls.Li;
-                p.neeRecord.light = uint32_t(chosen);
+                p.neeRecord.light = uint32_t(p.chosen);
                 p.neeRecord.weight = (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z) / ls.pdf;
                 p.neePending = p.neeRecord.weight > 0.0f && std::isfinite(p.neeRecord.weight);
             }
@@ -220,16 +252,16 @@ bool PathTracer::scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters&
     }
 
     // Continue the path by sampling the BSDF.
-    BsdfSample bs = bsdf.sample(out, uLobe, uBsdf);
-    if (!bs.valid() || !sameSideRule(si, bsdf, bs.wi)) return false;
+    const BsdfSample& bs = p.bs;
+    if (!bs.valid() || !sameSideRule(si, p.transmits, bs.wi)) return false;
     p.beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
     if (isBlack(p.beta) || !isFinite(p.beta)) return false;
     p.prevBsdfPdf = bs.pdf;
     p.prevP = si.p;
     std::swap(p.probs, p.prevProbs);
-    if (depth + 1 >= kRouletteStart && cutDepth == 0) {
+    if (p.depth + 1 >= kRouletteStart && p.cutDepth == 0) {
         float q = std::min(1.0f, maxComponent(p.beta) / rouletteThreshold_);
-        if (uRoulette >= q) return false;
+        if (p.uRoulette >= q) return false;
         p.beta /= q;
     }
     ++counters.extension;
@@ -267,10 +299,15 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
     Path p;
     p.si = si;
     p.sampler = &sampler;
+    p.cutDepth = cutDepth;
     p.probs = probsA;
     p.prevProbs = probsB;
     for (;;) {
-        const bool more = scatter(p, nullptr, maxDepth, counters, record, nee, cutDepth, tail);
+        bool more = scatterBegin(p, nullptr, maxDepth, nee, cutDepth, tail);
+        if (more) {
+            shade(p);
+            more = scatterEnd(p, counters, record);
+        }
         if (p.shadowPending) {
             // A segment shorter than the two margins holds no occluder: the light and the point are within a
             // margin of each other's planes (and the contribution is about zero).
@@ -284,7 +321,9 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
 }
 
 struct PathTracer::BatchScratch {
-    std::vector<uint32_t> active, shadowPaths, extensionPaths;
+    BsdfLanes lanes;
+    std::vector<uint32_t> inLanes;
+    std::vector<uint32_t> active, shading, shadowPaths, extensionPaths;
     std::vector<RayQuery> queries;
     std::vector<uint8_t> blocked;
     std::vector<Hit> hits;
@@ -292,11 +331,54 @@ struct PathTracer::BatchScratch {
     std::vector<glm::vec2> points;
 };
 
+void PathTracer::shadeBatch(Path* paths, BatchScratch& scratch) {
+    // Materials without transmission in SIMD lanes (bsdf_lanes.h, the same bits as shade()), the rest one by one.
+    std::vector<uint32_t>& inLanes = scratch.inLanes;
+    inLanes.clear();
+    for (uint32_t i : scratch.shading) {
+        if (paths[i].si.bsdf.transmission == 0.0f)
+            inLanes.push_back(i);
+        else
+            shade(paths[i]);
+    }
+    BsdfLanes& L = scratch.lanes;
+    for (size_t first = 0; first < inLanes.size(); first += BsdfLanes::kLanes) {
+        const size_t n = std::min(BsdfLanes::kLanes, inLanes.size() - first);
+        for (size_t k = 0; k < n; ++k) {
+            const Path& p = paths[inLanes[first + k]];
+            const SurfaceInteraction& si = p.si;
+            const glm::vec3 l = p.neeCandidate ? p.ls.wi : si.ns;
+            L.nx[k] = si.ns.x, L.ny[k] = si.ns.y, L.nz[k] = si.ns.z;
+            L.wox[k] = si.wo.x, L.woy[k] = si.wo.y, L.woz[k] = si.wo.z;
+            L.lx[k] = l.x, L.ly[k] = l.y, L.lz[k] = l.z;
+            L.baseR[k] = si.bsdf.baseColor.x, L.baseG[k] = si.bsdf.baseColor.y, L.baseB[k] = si.bsdf.baseColor.z;
+            L.metallic[k] = si.bsdf.metallic, L.roughness[k] = si.bsdf.roughness, L.specular[k] = si.bsdf.specular;
+            L.specR[k] = si.bsdf.specularColor.x, L.specG[k] = si.bsdf.specularColor.y, L.specB[k] = si.bsdf.specularColor.z;
+            L.ior[k] = si.bsdf.ior;
+            L.uLobe[k] = p.uLobe, L.u0[k] = p.uBsdf.x, L.u1[k] = p.uBsdf.y;
+        }
+        shadeLanes(L, n);
+        for (size_t k = 0; k < n; ++k) {
+            Path& p = paths[inLanes[first + k]];
+            if (p.neeCandidate) {
+                p.neeEval = glm::vec3(L.evalR[k], L.evalG[k], L.evalB[k]);
+                p.neePdf = L.evalPdf[k];
+            }
+            p.bs.wi = glm::vec3(L.sampleX[k], L.sampleY[k], L.sampleZ[k]);
+            p.bs.f = glm::vec3(L.sampleR[k], L.sampleG[k], L.sampleB[k]);
+            p.bs.pdf = L.samplePdf[k];
+        }
+    }
+}
+
 void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& counters, BatchScratch& scratch, int cutDepth,
                             const ScatteredRadiance* tail) const {
     std::vector<uint32_t>& active = scratch.active;
     active.resize(n);
-    for (size_t i = 0; i < n; ++i) active[i] = uint32_t(i);
+    for (size_t i = 0; i < n; ++i) {
+        active[i] = uint32_t(i);
+        paths[i].cutDepth = cutDepth;
+    }
     while (!active.empty()) {
         // One vertex of every path still going, then all their shadow rays, then all their extension rays: the
         // same operations on each path in the same order as trace(), so the same bits.
@@ -307,10 +389,14 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         scratch.points.resize(3 * active.size());
         for (size_t k = 0; k < active.size(); ++k) scratch.samplers[k] = paths[active[k]].sampler;
         nextThree2D(scratch.samplers.data(), active.size(), scratch.points.data());
-        for (size_t k = 0; k < active.size(); ++k) {
-            const uint32_t i = active[k];
+        scratch.shading.clear();
+        for (size_t k = 0; k < active.size(); ++k)
+            if (scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, cutDepth, tail))
+                scratch.shading.push_back(active[k]);
+        shadeBatch(paths, scratch);
+        for (uint32_t i : scratch.shading) {
             Path& p = paths[i];
-            const bool more = scatter(p, &scratch.points[3 * k], maxDepth, counters, nullptr, nullptr, cutDepth, tail);
+            const bool more = scatterEnd(p, counters, nullptr);
             if (p.shadowPending) {
                 if (p.shadow.tfar > p.shadow.tnear)
                     scratch.shadowPaths.push_back(i);

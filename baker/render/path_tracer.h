@@ -153,13 +153,18 @@ private:
     struct Path;  // one path's state between its vertices (path_tracer.cpp)
     struct BatchScratch;
     // The parts of one path vertex, shared by the one-path tracer (trace) and the batched one (traceBatch).
-    // scatter: emission at p.si (MIS-weighted), the cut, next event estimation (a shadow query with its
-    // contribution, if one is needed) and the BSDF sample; returns whether the path goes on along
-    // p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive: the
-    // extension ray's hit (false: it left the scene, whose light is added).
-    // u: the vertex's three 2D sample points, nullptr to draw them from p's sampler.
-    bool scatter(Path& p, const glm::vec2* u, int maxDepth, RayCounters& counters, std::vector<RecordedRay>* record,
-                 NeeTrace* nee, int cutDepth, const ScatteredRadiance* tail) const;
+    // scatterBegin: emission at p.si (MIS-weighted), the cut, the vertex's sample points (u: three 2D points,
+    // nullptr to draw them from p's sampler) and the light sample; false if the path ends here. shade: the
+    // BSDF's part (the light sample's value and pdf, the BSDF sample). scatterEnd: next event estimation's
+    // shadow query and contribution, the throughput and Russian roulette; returns whether the path goes on
+    // along p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive:
+    // the extension ray's hit (false: it left the scene, whose light is added).
+    bool scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, int cutDepth,
+                      const ScatteredRadiance* tail) const;
+    static void shade(Path& p);
+    // shade() for the paths in scratch.shading.
+    static void shadeBatch(Path* paths, BatchScratch& scratch);
+    bool scatterEnd(Path& p, RayCounters& counters, std::vector<RecordedRay>* record) const;
     void finishShadow(Path& p, bool blocked, NeeTrace* nee) const;
     bool arrive(Path& p, const Hit& hit) const;
     // Runs paths[0..n) (each with its interaction, sampler and selection buffers set) to their ends.
