@@ -184,7 +184,7 @@ bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrac
     // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
     // the chosen light's probability, is reused as the point's first coordinate, so the samples that
     // choose a light are stratified over it (in every selection mode).
-    // u: the three 2D points, drawn for a whole batch at once (nextThree2D), or here.
+    // u: the three 2D points, drawn for a whole batch at once (next2D), or here.
     glm::vec2 drawn[3];
     if (!u) {
         for (glm::vec2& d : drawn) d = p.sampler->get2D();
@@ -388,7 +388,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         scratch.samplers.resize(active.size());
         scratch.points.resize(3 * active.size());
         for (size_t k = 0; k < active.size(); ++k) scratch.samplers[k] = paths[active[k]].sampler;
-        nextThree2D(scratch.samplers.data(), active.size(), scratch.points.data());
+        next2D(scratch.samplers.data(), active.size(), 3, scratch.points.data());
         scratch.shading.clear();
         for (size_t k = 0; k < active.size(); ++k)
             if (scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, cutDepth, tail))
@@ -484,6 +484,8 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
         std::vector<uint32_t> streams;
         std::vector<glm::dvec3> sums;
         std::vector<Sampler> samplers;
+        std::vector<Sampler*> samplerOf;
+        std::vector<glm::vec2> jitters;
         std::vector<RayQuery> cameraRays;
         std::vector<Hit> cameraHits;
         std::vector<Path> paths;
@@ -527,11 +529,15 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     samplers.clear();
                     cameraRays.resize(m);
                     cameraHits.resize(m);
+                    samplerOf.resize(m);
+                    jitters.resize(m);
+                    for (size_t k = 0; k < m; ++k)
+                        samplers.emplace_back(streams[(first + k) % pixels], uint32_t((first + k) / pixels));
+                    for (size_t k = 0; k < m; ++k) samplerOf[k] = &samplers[k];
+                    next2D(samplerOf.data(), m, 1, jitters.data());
                     for (size_t k = 0; k < m; ++k) {
                         const size_t i = (first + k) % pixels;
-                        samplers.emplace_back(streams[i], uint32_t((first + k) / pixels));
-                        glm::vec2 jitter = samplers[k].get2D();
-                        rays.generate(float(x0 + int(i) % tw) + jitter.x, float(y0 + int(i) / tw) + jitter.y,
+                        rays.generate(float(x0 + int(i) % tw) + jitters[k].x, float(y0 + int(i) / tw) + jitters[k].y,
                                       cameraRays[k].origin, cameraRays[k].direction);
                     }
                     counters.primary += m;

@@ -12,7 +12,7 @@ namespace nrad {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(NRAD_NO_TARGET_CLONES)
 __attribute__((target_clones("avx512f", "avx2", "default")))
 #endif
-void nextThree2D(Sampler* const* samplers, size_t n, glm::vec2* out) {
+void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out) {
     constexpr size_t kChunk = 64;
     uint32_t stream[kChunk], indexReversed[kChunk], dimension[kChunk], seed[kChunk], i[kChunk], x[kChunk], y[kChunk];
     for (size_t first = 0; first < n; first += kChunk) {
@@ -23,7 +23,7 @@ void nextThree2D(Sampler* const* samplers, size_t n, glm::vec2* out) {
             indexReversed[k] = s.indexReversed_;
             dimension[k] = s.dimension_;
         }
-        for (uint32_t j = 0; j < 3; ++j) {
+        for (uint32_t j = 0; j < count; ++j) {
             // Sampler::get2D, one step at a time over the chunk: the hashes and scrambles vectorise, the table
             // lookups of the second Sobol dimension do not.
             for (size_t k = 0; k < m; ++k) {
@@ -33,9 +33,9 @@ void nextThree2D(Sampler* const* samplers, size_t n, glm::vec2* out) {
             }
             for (size_t k = 0; k < m; ++k) i[k] = sobolDim1Reversed(i[k]);
             for (size_t k = 0; k < m; ++k) y[k] = reverseBits(laineKarrasPermutation(i[k], seed[k] * 0x85ebca6bu + 0x2c1b3c6du));
-            for (size_t k = 0; k < m; ++k) out[3 * (first + k) + j] = glm::vec2(toUnitFloat(x[k]), toUnitFloat(y[k]));
+            for (size_t k = 0; k < m; ++k) out[count * (first + k) + j] = glm::vec2(toUnitFloat(x[k]), toUnitFloat(y[k]));
         }
-        for (size_t k = 0; k < m; ++k) samplers[first + k]->dimension_ += 3;
+        for (size_t k = 0; k < m; ++k) samplers[first + k]->dimension_ += count;
     }
 }
 

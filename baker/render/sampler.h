@@ -109,16 +109,16 @@ public:
     uint32_t dimension() const { return dimension_; }
 
 private:
-    friend void nextThree2D(Sampler* const* samplers, size_t n, glm::vec2* out);
+    friend void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out);
     uint32_t stream_;
     uint32_t indexReversed_;
     uint32_t dimension_ = 0;
 };
 
-// Three consecutive get2D() of each of samplers[0..n) at once, out[3 k + j] the j-th of samplers[k] (each
-// advanced by three dimension pairs): the same bits as the calls, in loops the compiler vectorises across
-// samplers (the path tracer's batches draw a vertex's three 2D points this way).
-void nextThree2D(Sampler* const* samplers, size_t n, glm::vec2* out);
+// `count` consecutive get2D() of each of samplers[0..n) at once, out[count k + j] the j-th of samplers[k]
+// (each advanced by `count` dimension pairs): the same bits as the calls, in loops the compiler vectorises
+// across samplers (the path tracer's batches draw their camera jitters and vertices' 2D points this way).
+void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out);
 
 // Stream id of a pixel for a given user seed.
 inline uint32_t pixelStream(uint32_t x, uint32_t y, uint32_t seed) {
