@@ -113,7 +113,11 @@ uint64_t sceneHash(const Scene& scene) {
                      float(m.baseColorTexture.texture), float(m.emissiveTexture.texture), float(m.metallicRoughnessTexture.texture)};
         hashBytes(h, f, sizeof f / sizeof f[0]);
     }
-    for (const Texture& t : scene.textures) hashBytes(h, t.texels.data(), t.texels.size());
+    for (const Texture& t : scene.textures)
+        for (size_t i = 0, n = t.texelCount(); i < n; ++i) {  // the decoded texels, however they are stored
+            const glm::vec4 texel = t.texel(i);
+            hashBytes(h, &texel, 1);
+        }
     for (const PunctualLight& l : scene.lights) {
         float f[] = {float(l.type), l.position.x, l.position.y, l.position.z, l.direction.x, l.direction.y, l.direction.z,
                      l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone};

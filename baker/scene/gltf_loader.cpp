@@ -163,33 +163,26 @@ private:
             size_t need = size_t(img.width) * size_t(img.height) * size_t(comp) * size_t(bytes);
             if (comp < 1 || comp > 4 || (bytes != 1 && bytes != 2) || img.image.size() < need)
                 fail("image " + std::to_string(t.source) + " has an unsupported pixel layout");
-            tex.texels.resize(size_t(img.width) * size_t(img.height));
+            const size_t count = size_t(img.width) * size_t(img.height);
             if (bytes == 1) {
-                // 8-bit channels through tables of the same conversions as below (the same bits, no pow per
-                // channel): colour from sRGB where the texture holds colour, alpha (a 2- or 4-channel image's
-                // last) always linear. (tinygltf expands 8-bit images to RGBA unless told to preserve their
-                // channels; the other counts are for when it does.)
-                static const std::array<float, 256> unitOfByte = [] {
-                    std::array<float, 256> table{};
-                    for (int v = 0; v < 256; ++v) table[size_t(v)] = float(v) / 255.0f;
-                    return table;
-                }();
-                static const std::array<float, 256> linearOfSrgbByte = [] {
-                    std::array<float, 256> table{};
-                    for (int v = 0; v < 256; ++v) table[size_t(v)] = srgbToLinear(float(v) / 255.0f);
-                    return table;
-                }();
-                const std::array<float, 256>& colour = srgb ? linearOfSrgbByte : unitOfByte;
+                // 8-bit channels kept as RGBA bytes, decoded in lookups through tables of the same conversions
+                // as below (Texture::texel): colour from sRGB where the texture holds colour, alpha (a 2- or
+                // 4-channel image's last) always linear. (tinygltf expands 8-bit images to RGBA unless told to
+                // preserve their channels; the other counts are for when it does.)
+                tex.colour = srgb ? linearOfSrgbByte() : unitOfByte();
+                tex.bytes.resize(4 * count);
                 const unsigned char* px = img.image.data();
-                for (size_t i = 0; i < tex.texels.size(); ++i, px += comp) {
+                uint8_t* out = tex.bytes.data();
+                for (size_t i = 0; i < count; ++i, px += comp, out += 4) {
                     switch (comp) {
-                        case 1: tex.texels[i] = glm::vec4(glm::vec3(colour[px[0]]), 1.0f); break;
-                        case 2: tex.texels[i] = glm::vec4(glm::vec3(colour[px[0]]), unitOfByte[px[1]]); break;
-                        case 3: tex.texels[i] = glm::vec4(colour[px[0]], colour[px[1]], colour[px[2]], 1.0f); break;
-                        default: tex.texels[i] = glm::vec4(colour[px[0]], colour[px[1]], colour[px[2]], unitOfByte[px[3]]); break;
+                        case 1: out[0] = out[1] = out[2] = px[0], out[3] = 255; break;
+                        case 2: out[0] = out[1] = out[2] = px[0], out[3] = px[1]; break;
+                        case 3: out[0] = px[0], out[1] = px[1], out[2] = px[2], out[3] = 255; break;
+                        default: out[0] = px[0], out[1] = px[1], out[2] = px[2], out[3] = px[3]; break;
                     }
                 }
             } else {
+                tex.texels.resize(count);
                 for (size_t i = 0; i < tex.texels.size(); ++i) {
                     float c[4] = {0, 0, 0, 1};
                     for (int k = 0; k < comp; ++k) {

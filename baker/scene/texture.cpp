@@ -1,6 +1,7 @@
 // Texture lookups and colour transfer functions.
 #include "baker/scene/texture.h"
 
+#include <array>
 #include <cmath>
 
 namespace nrad {
@@ -39,21 +40,40 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
     int x0 = int(fx), y0 = int(fy);
     int xa = wrapIndex(x0, width, wrapS), xb = wrapIndex(x0 + 1, width, wrapS);
     int ya = wrapIndex(y0, height, wrapT), yb = wrapIndex(y0 + 1, height, wrapT);
-    const glm::vec4& a = texels[size_t(ya) * width + xa];
-    const glm::vec4& b = texels[size_t(ya) * width + xb];
-    const glm::vec4& c = texels[size_t(yb) * width + xa];
-    const glm::vec4& d = texels[size_t(yb) * width + xb];
+    const glm::vec4 a = texel(size_t(ya) * width + xa);
+    const glm::vec4 b = texel(size_t(ya) * width + xb);
+    const glm::vec4 c = texel(size_t(yb) * width + xa);
+    const glm::vec4 d = texel(size_t(yb) * width + xb);
     return (a * (1.0f - tx) + b * tx) * (1.0f - ty) + (c * (1.0f - tx) + d * tx) * ty;
 }
 
 void Texture::computeAverage() {
     glm::dvec4 sum(0.0);
-    for (const glm::vec4& t : texels) sum += glm::dvec4(t);
-    average = texels.empty() ? glm::vec4(0.0f) : glm::vec4(sum / double(texels.size()));
+    const size_t n = texelCount();
+    for (size_t i = 0; i < n; ++i) sum += glm::dvec4(texel(i));
+    average = n == 0 ? glm::vec4(0.0f) : glm::vec4(sum / double(n));
 }
 
 float srgbToLinear(float c) {
     return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+const float* unitOfByte() {
+    static const std::array<float, 256> table = [] {
+        std::array<float, 256> t{};
+        for (int v = 0; v < 256; ++v) t[size_t(v)] = float(v) / 255.0f;
+        return t;
+    }();
+    return table.data();
+}
+
+const float* linearOfSrgbByte() {
+    static const std::array<float, 256> table = [] {
+        std::array<float, 256> t{};
+        for (int v = 0; v < 256; ++v) t[size_t(v)] = srgbToLinear(float(v) / 255.0f);
+        return t;
+    }();
+    return table.data();
 }
 
 float linearToSrgb(float c) {

@@ -1,18 +1,37 @@
-// Texture: a decoded image in linear float RGBA with its glTF sampler wrap modes, bilinear lookups.
+// Texture: an image in linear RGBA (8-bit channels decoded in lookups) with its glTF sampler wrap modes,
+// bilinear lookups.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 namespace nrad {
 
+// The 256 values of an 8-bit channel: v / 255, and srgbToLinear(v / 255).
+const float* unitOfByte();
+const float* linearOfSrgbByte();
+
 enum class WrapMode { Repeat, ClampToEdge, MirroredRepeat };
 
 struct Texture {
     int width = 0;
     int height = 0;
-    std::vector<glm::vec4> texels;  // row-major, top row first, linear values
+    // Row-major, top row first. An 8-bit image keeps its bytes (`bytes`, RGBA, 4 per texel; a quarter of the
+    // memory, so lookups miss the cache less) and decodes them in lookups through 256-entry tables, `colour`
+    // for RGB (sRGB-decoding or not) and unitOfByte() for alpha: the same floats as decoding on load. Other
+    // images (16-bit, or built in code) hold linear floats in `texels`. texel(i) gives either.
+    std::vector<glm::vec4> texels;
+    std::vector<uint8_t> bytes;
+    const float* colour = nullptr;
+    size_t texelCount() const { return bytes.empty() ? texels.size() : bytes.size() / 4; }
+    glm::vec4 texel(size_t i) const {
+        if (bytes.empty()) return texels[i];
+        const uint8_t* b = &bytes[4 * i];
+        return glm::vec4(colour[b[0]], colour[b[1]], colour[b[2]], unitOfByte()[b[3]]);
+    }
     WrapMode wrapS = WrapMode::Repeat;
     WrapMode wrapT = WrapMode::Repeat;
     glm::vec4 average{0.0f};  // mean texel, for light power estimates
@@ -25,5 +44,6 @@ struct Texture {
 // sRGB transfer function, decoding (0..1 -> linear) and encoding (linear -> 0..1).
 float srgbToLinear(float c);
 float linearToSrgb(float c);
+
 
 }  // namespace nrad

@@ -383,15 +383,15 @@ TEST(MaterialFeatures, EveryByteDecodesAsItsTransferFunctionSays) {
     const Texture& colour1 = texture(scene.materials[1].baseColorTexture);
     const Texture& data2 = texture(scene.materials[1].metallicRoughnessTexture);
     const Texture& colour3 = texture(scene.materials[2].baseColorTexture);
-    for (const Texture* t : {&colour4, &data4, &colour1, &data2, &colour3}) ASSERT_EQ(t->texels.size(), 256u);
+    for (const Texture* t : {&colour4, &data4, &colour1, &data2, &colour3}) ASSERT_EQ(t->texelCount(), 256u);
     for (int v = 0; v < 256; ++v) {
         const float u = float(v) / 255.0f, w = float(255 - v) / 255.0f;
         const float cu = srgbToLinear(u), cw = srgbToLinear(w);
-        ASSERT_EQ(colour4.texels[size_t(v)], glm::vec4(cu, cw, cu, w)) << v;
-        ASSERT_EQ(data4.texels[size_t(v)], glm::vec4(u, w, u, w)) << v;
-        ASSERT_EQ(colour1.texels[size_t(v)], glm::vec4(cu, cu, cu, 1.0f)) << v;
-        ASSERT_EQ(data2.texels[size_t(v)], glm::vec4(u, u, u, w)) << v;
-        ASSERT_EQ(colour3.texels[size_t(v)], glm::vec4(cu, cw, cu, 1.0f)) << v;
+        ASSERT_EQ(colour4.texel(size_t(v)), glm::vec4(cu, cw, cu, w)) << v;
+        ASSERT_EQ(data4.texel(size_t(v)), glm::vec4(u, w, u, w)) << v;
+        ASSERT_EQ(colour1.texel(size_t(v)), glm::vec4(cu, cu, cu, 1.0f)) << v;
+        ASSERT_EQ(data2.texel(size_t(v)), glm::vec4(u, u, u, w)) << v;
+        ASSERT_EQ(colour3.texel(size_t(v)), glm::vec4(cu, cw, cu, 1.0f)) << v;
     }
 }
 

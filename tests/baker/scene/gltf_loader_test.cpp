@@ -117,7 +117,7 @@ TEST(GltfLoader, TexturesAreDecodedAndSrgbLinearised) {
     EXPECT_GT(base.width, 0);
     EXPECT_GT(base.height, 0);
     // An sRGB-decoded average is darker than the encoded one; all texels in [0, 1].
-    for (const glm::vec4& t : base.texels) ASSERT_TRUE(t.x >= 0.0f && t.x <= 1.0f);
+    for (size_t i = 0; i < base.texelCount(); ++i) ASSERT_TRUE(base.texel(i).x >= 0.0f && base.texel(i).x <= 1.0f);
     EXPECT_GT(base.average.y, 0.0f);
     EXPECT_NE(m.baseColorTexture.texture, m.metallicRoughnessTexture.texture);
 }
