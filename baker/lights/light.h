@@ -66,6 +66,8 @@ public:
     LightSample sampleAt(const glm::vec3& p, const glm::vec3& pl, float b1, float b2) const;
     float pdf(const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;
     float area() const { return area_; }
+    // Whether its radiance varies over it (an emissive texture): else sampleAt ignores b1 and b2.
+    bool textured() const { return textured_; }
 
 private:
     const Scene& scene_;
@@ -74,6 +76,8 @@ private:
     double power_;
     glm::vec3 normal_;  // TriangleMesh::geometricNormal, once
     float margin_;  // triangleMargin, once
+    bool textured_;
+    glm::vec3 frontRadiance_, backRadiance_;  // emittedRadiance towards either side, untextured
 };
 
 // The lights of the scene, in entry order: emissive triangles of positive power (index order), punctual

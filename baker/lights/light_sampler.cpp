@@ -77,14 +77,17 @@ LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec
     const auto& P = scene_.mesh.positions;
     glm::vec3 pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
     size_t i = group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
-    const TriangleLight& light = *triangleLight(i);
-    const glm::uvec3& tri = scene_.mesh.triangles[size_t(light.triangle())];
-    // Barycentrics of pl in the triangle's own vertex order (for emittedRadiance).
-    glm::vec3 e1 = P[tri.y] - P[tri.x], e2 = P[tri.z] - P[tri.x], d = pl - P[tri.x];
-    float d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
-    float d1 = glm::dot(d, e1), d2 = glm::dot(d, e2), den = d11 * d22 - d12 * d12;
-    float b1 = den > 0.0f ? std::clamp((d22 * d1 - d12 * d2) / den, 0.0f, 1.0f) : 0.0f;
-    float b2 = den > 0.0f ? std::clamp((d11 * d2 - d12 * d1) / den, 0.0f, 1.0f - b1) : 0.0f;
+    const auto& light = static_cast<const TriangleLight&>(*lights_[i]);  // a parallelogram's entries are triangles
+    float b1 = 0.0f, b2 = 0.0f;
+    if (light.textured()) {
+        // Barycentrics of pl in the triangle's own vertex order (for the emissive texture).
+        const glm::uvec3& tri = scene_.mesh.triangles[size_t(light.triangle())];
+        glm::vec3 e1 = P[tri.y] - P[tri.x], e2 = P[tri.z] - P[tri.x], d = pl - P[tri.x];
+        float d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
+        float d1 = glm::dot(d, e1), d2 = glm::dot(d, e2), den = d11 * d22 - d12 * d12;
+        b1 = den > 0.0f ? std::clamp((d22 * d1 - d12 * d2) / den, 0.0f, 1.0f) : 0.0f;
+        b2 = den > 0.0f ? std::clamp((d11 * d2 - d12 * d1) / den, 0.0f, 1.0f - b1) : 0.0f;
+    }
     LightSample ls = light.sampleAt(p, pl, b1, b2);
     ls.pdf *= globalPick ? pickProbability(i) : pickInGroup_[i];
     ls.entry = int32_t(i);

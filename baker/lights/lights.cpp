@@ -148,7 +148,10 @@ glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi) {
 
 TriangleLight::TriangleLight(const Scene& scene, uint32_t triangle, double power)
     : scene_(scene), triangle_(triangle), area_(scene.mesh.triangleArea(triangle)), power_(power),
-      normal_(scene.mesh.geometricNormal(triangle)), margin_(triangleMargin(scene.mesh, triangle)) {}
+      normal_(scene.mesh.geometricNormal(triangle)), margin_(triangleMargin(scene.mesh, triangle)),
+      textured_(scene.materials[scene.mesh.materialIds[triangle]].emissiveTexture.valid()),
+      frontRadiance_(emittedRadiance(scene, triangle, 0.0f, 0.0f, true)),
+      backRadiance_(emittedRadiance(scene, triangle, 0.0f, 0.0f, false)) {}
 
 LightSample TriangleLight::sample(const glm::vec3& p, glm::vec2 u) const {
     const glm::uvec3& tri = scene_.mesh.triangles[triangle_];
@@ -172,7 +175,7 @@ LightSample TriangleLight::sampleAt(const glm::vec3& p, const glm::vec3& pl, flo
     if (!front) nl = -nl;
     float absCos = std::abs(cosLight);
     if (!(absCos > 0.0f)) return ls;
-    ls.Li = emittedRadiance(scene_, triangle_, b1, b2, front);
+    ls.Li = textured_ ? emittedRadiance(scene_, triangle_, b1, b2, front) : (front ? frontRadiance_ : backRadiance_);
     ls.wi = wi;
     ls.distance = dist;
     ls.pdf = dist2 / (absCos * area_);

@@ -55,13 +55,19 @@ float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
     return c > 0.0f ? std::max(margin, rayOffset(p)) / c : std::numeric_limits<float>::infinity();
 }
 
-glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front) {
-    const Material& m = scene.materials[scene.mesh.materialIds[triangle]];
+namespace {
+// emittedRadiance with the triangle's material already found.
+glm::vec3 emittedRadiance(const Scene& scene, const Material& m, uint32_t triangle, float u, float v, bool front) {
     if (!m.emissive() || (!front && !m.doubleSided)) return glm::vec3(0.0f);
     glm::vec3 e = m.emission;
     if (m.emissiveTexture.valid())
         e *= glm::vec3(lookup(scene, m.emissiveTexture, scene.mesh, scene.mesh.triangles[triangle], 1.0f - u - v, u, v));
     return e;
+}
+}  // namespace
+
+glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front) {
+    return emittedRadiance(scene, scene.materials[scene.mesh.materialIds[triangle]], triangle, u, v, front);
 }
 
 float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v) {
@@ -133,7 +139,7 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.bsdf.baseColor = glm::clamp(si.bsdf.baseColor, 0.0f, 1.0f);
     si.bsdf.metallic = std::clamp(si.bsdf.metallic, 0.0f, 1.0f);
     si.bsdf.roughness = std::clamp(si.bsdf.roughness, 0.0f, 1.0f);
-    si.emission = emittedRadiance(scene, hit.triangle, hit.u, hit.v, si.frontFace);
+    si.emission = emittedRadiance(scene, m, hit.triangle, hit.u, hit.v, si.frontFace);
     si.margin = hit.margin >= 0.0f ? hit.margin : triangleMargin(mesh, hit.triangle);
     return si;
 }
