@@ -95,13 +95,12 @@ LANE Vertex vertex(const BsdfLanes& L, size_t k) {
     v.wz = wx * v.nx + wy * v.ny + wz * v.nz;
     v.lambda = ggxLambda(v.wz, v.alpha);
     v.fresnel = macroFresnel(v, v.wz);
-    // lobeWeights and lobeProbabilities with transmission 0
+    // lobeWeights and lobeProbabilities with transmission 0 (its terms drop out exactly: (1 - 0) base is base,
+    // the transmission weight 0 base is 0 for the finite base here, and x - 0 is x)
     const float baseLum = 0.2126f * v.baseR + 0.7152f * v.baseG + 0.0722f * v.baseB;
     const float spec = v.metallic + (1.0f - v.metallic) * v.specular * v.fresnel;
     const float base = (1.0f - v.metallic) * (1.0f - v.specular * v.fresnel) * baseLum;
-    const float diff = (1.0f - 0.0f) * base;
-    const float trans = 0.0f * base;
-    const float sum = spec + diff + trans;
+    const float sum = spec + base;
     const float ratio = spec / sum;
     const float pSpec = sum > spec ? ratio : 1.0f;
     v.pSpec = spec <= 0.0f ? 0.0f : pSpec;
@@ -120,12 +119,11 @@ LANE void evalLocal(const Vertex& v, float ix, float iy, float iz, float& r, flo
     const float g2 = 1.0f / (1.0f + v.lambda + ggxLambda(iz, v.alpha));
     const float spec = ggxD(hz, v.alpha) * g2 / (4.0f * v.wz * iz);
     const float transmitted = (1.0f - v.specular * v.fresnel) * (1.0f - v.specular * macroFresnel(v, iz));
-    const float kd = (1.0f - 0.0f) * transmitted;
     const float m = v.metallic, s = v.specular;
     auto channel = [&](float base, float f0) {
         const float diffuse = base / kPi;
         const float fr = f0 + (1.0f - f0) * schlick;
-        const float dielectric = kd * diffuse + s * fr * spec;
+        const float dielectric = transmitted * diffuse + s * fr * spec;
         const float metal = (base + (1.0f - base) * schlick) * spec;
         float c = (1.0f - m) * dielectric + m * metal;
         // evalLocal's early returns: wo below, wi in the plane or below (no transmission), h of no length
@@ -141,7 +139,7 @@ LANE void evalLocal(const Vertex& v, float ix, float iy, float iz, float& r, flo
 
 // Bsdf::pdfLocal for wi on wo's side (or zero).
 LANE float pdfLocal(const Vertex& v, float ix, float iy, float iz) {
-    float pdf = (1.0f - v.pSpec - 0.0f) * iz / kPi;
+    float pdf = (1.0f - v.pSpec) * iz / kPi;
     // glm::normalize(wo + wi): times the inverse square root of its squared length
     const float hx0 = v.wx + ix, hy0 = v.wy + iy, hz0 = v.wz + iz;
     const float inv = 1.0f / std::sqrt(hx0 * hx0 + hy0 * hy0 + hz0 * hz0);

@@ -129,7 +129,7 @@ struct PathTracer::Path {
     // that the previous vertex's BSDF sample hit); LightSampler::kMaxLightGroups each, used with a selector.
     float* probs = nullptr;
     float* prevProbs = nullptr;
-    // What scatter leaves for the rays: a shadow query and the contribution it decides (computed with the
+    // What scatterEnd leaves for the rays: a shadow query and the contribution it decides (computed with the
     // throughput before the BSDF sample changes it), and the extension ray.
     bool shadowPending = false;
     bool neePending = false;  // neeRecord goes to NeeTrace::records if the shadow ray is unblocked
@@ -139,7 +139,7 @@ struct PathTracer::Path {
     NeeRecord neeRecord;
     // Between scatterBegin and scatterEnd: the vertex's sample points, its light sample, and what shade()
     // computes of the BSDF (the light sample's value and pdf, the BSDF sample).
-    int cutDepth = 0;
+    int cutDepth = 0;  // the bounce at which scatteredRadiance cuts the path (0: never)
     glm::vec2 uBsdf{0.0f};
     float uLobe = 0.0f, uRoulette = 0.0f;
     bool transmits = false;
@@ -150,12 +150,23 @@ struct PathTracer::Path {
     glm::vec3 neeEval{0.0f};
     float neePdf = 0.0f;
     BsdfSample bs;
+
+    // A path starting at si (none of it traced yet) with its sampler and, with a selector, its two buffers of
+    // kMaxLightGroups selection probabilities at probs.
+    void start(const SurfaceInteraction& at, Sampler* s, float* probsBuffer) {
+        *this = Path{};
+        si = at;
+        sampler = s;
+        if (probsBuffer) {
+            probs = probsBuffer;
+            prevProbs = probsBuffer + LightSampler::kMaxLightGroups;
+        }
+    }
 };
 
-bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, int cutDepth,
-                              const ScatteredRadiance* tail) const {
+bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, const ScatteredRadiance* tail) const {
     const SurfaceInteraction& si = p.si;
-    const int depth = p.depth;
+    const int depth = p.depth, cutDepth = p.cutDepth;
     p.shadowPending = p.neePending = p.neeCandidate = false;
     if (!isBlack(si.emission)) {
         if (depth == 0) {
@@ -295,15 +306,12 @@ bool PathTracer::arrive(Path& p, const Hit& hit) const {
 glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDepth, RayCounters& counters,
                             std::vector<RecordedRay>* record, NeeTrace* nee, int cutDepth,
                             const ScatteredRadiance* tail) const {
-    float probsA[LightSampler::kMaxLightGroups], probsB[LightSampler::kMaxLightGroups];
+    float probs[2 * LightSampler::kMaxLightGroups];
     Path p;
-    p.si = si;
-    p.sampler = &sampler;
+    p.start(si, &sampler, probs);
     p.cutDepth = cutDepth;
-    p.probs = probsA;
-    p.prevProbs = probsB;
     for (;;) {
-        bool more = scatterBegin(p, nullptr, maxDepth, nee, cutDepth, tail);
+        bool more = scatterBegin(p, nullptr, maxDepth, nee, tail);
         if (more) {
             shade(p);
             more = scatterEnd(p, counters, record);
@@ -391,7 +399,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         next2D(scratch.samplers.data(), active.size(), 3, scratch.points.data());
         scratch.shading.clear();
         for (size_t k = 0; k < active.size(); ++k)
-            if (scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, cutDepth, tail))
+            if (scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, tail))
                 scratch.shading.push_back(active[k]);
         shadeBatch(paths, scratch);
         for (uint32_t i : scratch.shading) {
@@ -436,14 +444,7 @@ void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const
         for (size_t k = 0; k < m; ++k) {
             const PathStart& start = starts[first + k];
             samplers.emplace_back(start.stream, start.index);
-            Path& p = paths[k];
-            p = Path{};
-            p.si = *start.si;
-            p.sampler = &samplers[k];
-            if (probsPerPath > 0) {
-                p.probs = probs.data() + probsPerPath * k;
-                p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
-            }
+            paths[k].start(*start.si, &samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
         }
         if (tail)
             traceBatch(paths.data(), m, 0, counters, scratch, std::max(1, bounces), tail);
@@ -550,13 +551,8 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                             continue;
                         }
                         pathOf[k] = uint32_t(paths.size());
-                        Path& p = paths.emplace_back();
-                        p.si = makeInteraction(scene_, cameraHits[k], cameraRays[k].direction);
-                        p.sampler = &samplers[k];
-                        if (probsPerPath > 0) {
-                            p.probs = probs.data() + probsPerPath * k;
-                            p.prevProbs = p.probs + LightSampler::kMaxLightGroups;
-                        }
+                        paths.emplace_back().start(makeInteraction(scene_, cameraHits[k], cameraRays[k].direction), &samplers[k],
+                                                   probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
                     }
                     traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
                     for (size_t k = 0; k < m; ++k) {

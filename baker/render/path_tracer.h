@@ -159,8 +159,7 @@ private:
     // shadow query and contribution, the throughput and Russian roulette; returns whether the path goes on
     // along p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive:
     // the extension ray's hit (false: it left the scene, whose light is added).
-    bool scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, int cutDepth,
-                      const ScatteredRadiance* tail) const;
+    bool scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, const ScatteredRadiance* tail) const;
     static void shade(Path& p);
     // shade() for the paths in scratch.shading.
     static void shadeBatch(Path* paths, BatchScratch& scratch);

@@ -59,25 +59,24 @@ double streamRaysPerSecond(const Accel& accel, const std::vector<RecordedRay>& r
     for (int r = 0; r < repeat; ++r) {
         std::atomic<size_t> hits{0};
         auto t0 = std::chrono::steady_clock::now();
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, (hitRays.size() + kBatch - 1) / kBatch), [&](const tbb::blocked_range<size_t>& range) {
+        // query(first ray, count) traces one batch and returns how many hit.
+        auto inBatches = [&](const std::vector<RayQuery>& queries, const auto& query) {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, (queries.size() + kBatch - 1) / kBatch), [&](const tbb::blocked_range<size_t>& range) {
+                size_t n = 0;
+                for (size_t b = range.begin(); b != range.end(); ++b)
+                    n += query(queries.data() + b * kBatch, std::min(kBatch, queries.size() - b * kBatch));
+                hits += n;
+            });
+        };
+        inBatches(hitRays, [&](const RayQuery* q, size_t m) {
             Hit out[kBatch];
-            size_t n = 0;
-            for (size_t b = range.begin(); b != range.end(); ++b) {
-                const size_t first = b * kBatch, m = std::min(kBatch, hitRays.size() - first);
-                accel.intersect(hitRays.data() + first, m, out);
-                for (size_t k = 0; k < m; ++k) n += out[k].valid();
-            }
-            hits += n;
+            accel.intersect(q, m, out);
+            return size_t(std::count_if(out, out + m, [](const Hit& h) { return h.valid(); }));
         });
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, (shadowRays.size() + kBatch - 1) / kBatch), [&](const tbb::blocked_range<size_t>& range) {
+        inBatches(shadowRays, [&](const RayQuery* q, size_t m) {
             uint8_t out[kBatch];
-            size_t n = 0;
-            for (size_t b = range.begin(); b != range.end(); ++b) {
-                const size_t first = b * kBatch, m = std::min(kBatch, shadowRays.size() - first);
-                accel.occluded(shadowRays.data() + first, m, out);
-                for (size_t k = 0; k < m; ++k) n += out[k];
-            }
-            hits += n;
+            accel.occluded(q, m, out);
+            return size_t(std::count(out, out + m, uint8_t(1)));
         });
         auto t1 = std::chrono::steady_clock::now();
         best = std::max(best, double(rays.size()) / seconds(t0, t1));
