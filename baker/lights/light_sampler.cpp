@@ -29,12 +29,12 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(sce
     totalPower_ = sum;
     for (double& c : cdf_) c /= sum;
     if (!cdf_.empty()) cdf_.back() = 1.0;
+    pick_.resize(cdf_.size());
+    for (size_t i = 0; i < cdf_.size(); ++i) pick_[i] = float(cdf_[i] - (i > 0 ? cdf_[i - 1] : 0.0));
     buildGroups(power);
 }
 
-float LightSampler::pickProbability(size_t i) const {
-    return float(cdf_[i] - (i > 0 ? cdf_[i - 1] : 0.0));
-}
+float LightSampler::pickProbability(size_t i) const { return pick_[i]; }
 
 namespace {
 // Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
@@ -45,27 +45,37 @@ float rescale(float u, double lo, double width) {
     return width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
 }
 
-size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
+// The interval of `cdf` holding u.
+size_t pick(const std::vector<double>& cdf, float u) {
     size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), double(u)) - cdf.begin());
-    i = std::min(i, cdf.size() - 1);
+    return std::min(i, cdf.size() - 1);
+}
+
+// u rescaled within interval i of `cdf`.
+float remap(const std::vector<double>& cdf, size_t i, float u) {
     double lo = i > 0 ? cdf[i - 1] : 0.0;
-    u = rescale(u, lo, cdf[i] - lo);
+    return rescale(u, lo, cdf[i] - lo);
+}
+
+size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
+    size_t i = pick(cdf, u);
+    u = remap(cdf, i, u);
     return i;
 }
 }  // namespace
 
 LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (lights_.empty()) return LightSample{};
-    const float u0 = u.x;
-    size_t i = pickAndRemap(cdf_, u.x);
+    const size_t i = pick(cdf_, u.x);
     const Group& group = groups_[groupOfEntry_[i]];
     if (group.parallelogram && group.entries[1] == group.entries[0] + 1) {
         // The quad's two triangles are neighbours in the CDF: rescale the pick over both and sample the quad.
         size_t a = group.entries[0], b = group.entries[1];
         double lo = a > 0 ? cdf_[a - 1] : 0.0;
-        u.x = rescale(u0, lo, cdf_[b] - lo);
+        u.x = rescale(u.x, lo, cdf_[b] - lo);
         return sampleParallelogram(group, p, u, true);
     }
+    u.x = remap(cdf_, i, u.x);
     return sampleEntry(i, pickProbability(i), p, u);
 }
 

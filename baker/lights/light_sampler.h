@@ -117,6 +117,7 @@ private:
     EnvironmentSampler environment_;
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<double> cdf_;  // cumulative power, normalised to end at 1
+    std::vector<float> pick_;  // per entry: its interval of cdf_ (the probability of picking it)
     std::vector<int32_t> entryOfTriangle_;  // triangle -> entry, -1 if not emissive
     std::vector<uint32_t> escapedEntries_;  // lights at infinity: what rays leaving the scene meet
     int32_t environmentEntry_ = -1;
