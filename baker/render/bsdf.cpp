@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "baker/render/sincos.h"
+
 namespace nrad {
 
 namespace {
@@ -24,8 +26,10 @@ glm::vec3 sampleVisibleNormal(const glm::vec3& wo, float alpha, const glm::vec2&
     glm::vec3 t2 = glm::cross(vh, t1);
     float r = std::sqrt(u.x);
     float phi = 2.0f * kPi * u.y;
-    float p1 = r * std::cos(phi);
-    float p2 = r * std::sin(phi);
+    float sinPhi, cosPhi;
+    sinCos(phi, sinPhi, cosPhi);
+    float p1 = r * cosPhi;
+    float p2 = r * sinPhi;
     float s = 0.5f * (1.0f + vh.z);
     p2 = (1.0f - s) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + s * p2;
     glm::vec3 nh = p1 * t1 + p2 * t2 + std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh;
@@ -201,7 +205,9 @@ BsdfSample Bsdf::sample(const Outgoing& o, float uLobe, const glm::vec2& u) cons
             r = d.y;
             phi = (kPi / 2.0f) - (kPi / 4.0f) * (d.x / d.y);
         }
-        float x = r * std::cos(phi), y = r * std::sin(phi);
+        float sinPhi, cosPhi;
+        sinCos(phi, sinPhi, cosPhi);
+        float x = r * cosPhi, y = r * sinPhi;
         wi = glm::vec3(x, y, std::sqrt(std::max(0.0f, 1.0f - x * x - y * y)));
     }
     if (wi.z <= 0.0f) return s;

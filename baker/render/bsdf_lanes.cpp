@@ -1,12 +1,13 @@
 // Bsdf's arithmetic (bsdf.cpp, glm's dot, normalize, cross and reflect) over lanes, branch-free: every
 // expression is the scalar code's, operand for operand, so the results are its bits; where the scalar code
-// returns early, the lanes compute on and select. Only the sine and cosine go through libm one lane at a time.
+// returns early, the lanes compute on and select. The sine and cosine are sincos.h's, shared with the scalar code.
 #include "baker/render/bsdf_lanes.h"
 
 #include <cfloat>
 #include <cmath>
 
 #include "baker/render/bsdf.h"
+#include "baker/render/sincos.h"
 
 namespace nrad {
 
@@ -187,10 +188,7 @@ void shadeLanes(BsdfLanes& L, size_t n) {
         r[k] = specular ? specR : diskR;
         phi[k] = specular ? specPhi : diskPhi;
     }
-    for (size_t k = 0; k < n; ++k) {
-        cosPhi[k] = std::cos(phi[k]);
-        sinPhi[k] = std::sin(phi[k]);
-    }
+    for (size_t k = 0; k < n; ++k) sinCos(phi[k], sinPhi[k], cosPhi[k]);
     for (size_t k = 0; k < n; ++k) {
         const Vertex v = vertex(L, k);
         const float p1 = r[k] * cosPhi[k], p2r = r[k] * sinPhi[k];
