@@ -159,7 +159,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     std::atomic<size_t> done{0};
     std::mutex statsMutex;
     // Ranges of enough points for a few hundred paths (the tracer's batches); the samples do not depend on them.
-    const size_t grain = std::max<size_t>(8, 256 / std::max<uint32_t>(1, settings.paths));
+    const size_t grain = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
     tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), grain), [&](const tbb::blocked_range<size_t>& range) {
         RayCounters counters;
         uint64_t nonFinite = 0;

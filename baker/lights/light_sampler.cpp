@@ -37,9 +37,6 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(sce
 float LightSampler::pickProbability(size_t i) const { return pick_[i]; }
 
 namespace {
-// Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
-// pick sample is reused as the first coordinate of the point on the light, so a stratified pick dimension
-// also stratifies the points within each light.
 // u rescaled from [lo, lo + width) to [0, 1).
 float rescale(float u, double lo, double width) {
     return width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
@@ -57,6 +54,9 @@ float remap(const std::vector<double>& cdf, size_t i, float u) {
     return rescale(u, lo, cdf[i] - lo);
 }
 
+// Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
+// pick sample is reused as the first coordinate of the point on the light, so a stratified pick dimension
+// also stratifies the points within each light.
 size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
     size_t i = pick(cdf, u);
     u = remap(cdf, i, u);

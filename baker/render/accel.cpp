@@ -146,26 +146,37 @@ void Accel::build(const TriangleMesh& mesh, const Scene* coverage) {
 
 Accel::~Accel() = default;
 
-Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    RTCRayHit rh;
+namespace {
+// A closest-hit query with no hit yet.
+void initRayHit(RTCRayHit& rh, const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) {
     initRay(rh.ray, origin, direction, tnear, tfar);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->scene, &context, &rh);
+}
+
+// The Hit of an answered closest-hit query, with the triangle's normal and margin from `faces`.
+Hit hitOf(const RTCRayHit& rh, const std::vector<glm::vec4>& faces) {
     Hit hit;
-    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        hit.t = rh.ray.tfar;
-        hit.triangle = rh.hit.primID;
-        hit.u = rh.hit.u;
-        hit.v = rh.hit.v;
-        const glm::vec4& face = impl_->faces[hit.triangle];
-        hit.ng = glm::vec3(face);
-        hit.margin = face.w;
-    }
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
+    hit.t = rh.ray.tfar;
+    hit.triangle = rh.hit.primID;
+    hit.u = rh.hit.u;
+    hit.v = rh.hit.v;
+    const glm::vec4& face = faces[hit.triangle];
+    hit.ng = glm::vec3(face);
+    hit.margin = face.w;
     return hit;
+}
+}  // namespace
+
+Hit Accel::intersect(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    initRayHit(rh, origin, direction, tnear, tfar);
+    rtcIntersect1(impl_->scene, &context, &rh);
+    return hitOf(rh, impl_->faces);
 }
 
 bool Accel::occluded(const glm::vec3& origin, const glm::vec3& direction, float tnear, float tfar) const {
@@ -191,24 +202,10 @@ void Accel::intersect(const RayQuery* rays, size_t count, Hit* hits, bool cohere
         const size_t n = std::min(kStreamChunk, count - start);
         for (size_t i = 0; i < n; ++i) {
             const RayQuery& q = rays[start + i];
-            initRay(chunk[i].ray, q.origin, q.direction, q.tnear, q.tfar);
-            chunk[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            chunk[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
-            chunk[i].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            initRayHit(chunk[i], q.origin, q.direction, q.tnear, q.tfar);
         }
         rtcIntersect1M(impl_->scene, &context, chunk, unsigned(n), sizeof(RTCRayHit));
-        for (size_t i = 0; i < n; ++i) {
-            Hit& hit = hits[start + i];
-            hit = Hit{};
-            if (chunk[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-            hit.t = chunk[i].ray.tfar;
-            hit.triangle = chunk[i].hit.primID;
-            hit.u = chunk[i].hit.u;
-            hit.v = chunk[i].hit.v;
-            const glm::vec4& face = impl_->faces[hit.triangle];
-            hit.ng = glm::vec3(face);
-            hit.margin = face.w;
-        }
+        for (size_t i = 0; i < n; ++i) hits[start + i] = hitOf(chunk[i], impl_->faces);
     }
 }
 

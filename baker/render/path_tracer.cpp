@@ -430,7 +430,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
 
 void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const ScatteredRadiance* tail, int bounces,
                           RayCounters& counters, glm::vec3* out) const {
-    constexpr size_t kBatch = 256;
+    constexpr size_t kBatch = size_t(kBatchSize);
     const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
     std::vector<Sampler> samplers;
     std::vector<Path> paths;

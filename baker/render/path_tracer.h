@@ -38,6 +38,9 @@ struct RayCounters {
     }
 };
 
+// Paths a batch of the batched tracer traces together (renders and training estimates).
+constexpr int kBatchSize = 256;
+
 struct RenderSettings {
     int width = 512;
     int height = 512;
@@ -48,7 +51,7 @@ struct RenderSettings {
     // Paths traced together (a wavefront: one vertex of every path, then their shadow rays and their extension
     // rays as Embree streams, which give the single-ray results bit for bit). 1 traces one path at a time (the
     // plain reference the batched tracer is tested against).
-    int batchSize = 256;
+    int batchSize = kBatchSize;
     // Batches trace their camera rays as a coherent stream (Embree's packet kernels, as much as 20% faster on
     // a large level). The packet kernels differ from the single-ray ones in the last bits of rare hits (on
     // zdm2, 3 of 36,613 recorded rays hit a neighbouring triangle), which depend on the packet's other rays:

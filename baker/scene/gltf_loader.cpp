@@ -170,6 +170,7 @@ private:
                 // 4-channel image's last) always linear. (tinygltf expands 8-bit images to RGBA unless told to
                 // preserve their channels; the other counts are for when it does.)
                 tex.colour = srgb ? linearOfSrgbByte() : unitOfByte();
+                tex.alpha = unitOfByte();
                 tex.bytes.resize(4 * count);
                 const unsigned char* px = img.image.data();
                 uint8_t* out = tex.bytes.data();

@@ -21,16 +21,17 @@ struct Texture {
     int height = 0;
     // Row-major, top row first. An 8-bit image keeps its bytes (`bytes`, RGBA, 4 per texel; a quarter of the
     // memory, so lookups miss the cache less) and decodes them in lookups through 256-entry tables, `colour`
-    // for RGB (sRGB-decoding or not) and unitOfByte() for alpha: the same floats as decoding on load. Other
-    // images (16-bit, or built in code) hold linear floats in `texels`. texel(i) gives either.
+    // for RGB (sRGB-decoding or not) and `alpha` (unitOfByte()) for alpha: the same floats as decoding on load.
+    // Other images (16-bit, or built in code) hold linear floats in `texels`. texel(i) gives either.
     std::vector<glm::vec4> texels;
     std::vector<uint8_t> bytes;
     const float* colour = nullptr;
+    const float* alpha = nullptr;
     size_t texelCount() const { return bytes.empty() ? texels.size() : bytes.size() / 4; }
     glm::vec4 texel(size_t i) const {
         if (bytes.empty()) return texels[i];
         const uint8_t* b = &bytes[4 * i];
-        return glm::vec4(colour[b[0]], colour[b[1]], colour[b[2]], unitOfByte()[b[3]]);
+        return glm::vec4(colour[b[0]], colour[b[1]], colour[b[2]], alpha[b[3]]);
     }
     WrapMode wrapS = WrapMode::Repeat;
     WrapMode wrapT = WrapMode::Repeat;
@@ -44,6 +45,5 @@ struct Texture {
 // sRGB transfer function, decoding (0..1 -> linear) and encoding (linear -> 0..1).
 float srgbToLinear(float c);
 float linearToSrgb(float c);
-
 
 }  // namespace nrad

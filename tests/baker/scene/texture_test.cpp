@@ -79,6 +79,7 @@ TEST(Texture, ByteTexelsLookUpAsTheirDecodedFloats) {
             bytes.wrapS = floats.wrapS = wrap;
             bytes.wrapT = floats.wrapT = WrapMode::Repeat;
             bytes.colour = table;
+            bytes.alpha = unitOfByte();
             for (int i = 0; i < 7 * 5 * 4; ++i) bytes.bytes.push_back(uint8_t(rng() & 255u));
             for (int i = 0; i < 7 * 5; ++i) {
                 const uint8_t* b = &bytes.bytes[size_t(4 * i)];
