@@ -422,6 +422,9 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         scratch.hits.resize(extensions);
         for (size_t k = 0; k < extensions; ++k) scratch.queries[k] = paths[scratch.extensionPaths[k]].extension;
         accel_.intersect(scratch.queries.data(), extensions, scratch.hits.data());
+        if (!scene_.textures.empty())
+            for (size_t k = 0; k < extensions; ++k)
+                if (scratch.hits[k].valid()) prefetchInteraction(scene_, scratch.hits[k]);
         active.clear();
         for (size_t k = 0; k < extensions; ++k)
             if (arrive(paths[scratch.extensionPaths[k]], scratch.hits[k])) active.push_back(scratch.extensionPaths[k]);
@@ -483,10 +486,13 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
         RayCounters counters;
         // The batched tracer's buffers, reused by the tiles of this range.
         std::vector<uint32_t> streams;
+        std::vector<int> pixelX, pixelY;  // of the tile's pixels
+        std::vector<uint32_t> pixelOf;  // per path of a batch: its pixel in the tile
         std::vector<glm::dvec3> sums;
         std::vector<Sampler> samplers;
         std::vector<Sampler*> samplerOf;
         std::vector<glm::vec2> jitters;
+        std::vector<float> rasterX, rasterY;
         std::vector<RayQuery> cameraRays;
         std::vector<Hit> cameraHits;
         std::vector<Path> paths;
@@ -520,9 +526,14 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                 const int tw = x1 - x0;
                 const size_t pixels = size_t(tw) * size_t(y1 - y0);
                 streams.resize(pixels);
+                pixelX.resize(pixels);
+                pixelY.resize(pixels);
                 sums.assign(pixels, glm::dvec3(0.0));
-                for (size_t i = 0; i < pixels; ++i)
-                    streams[i] = pixelStream(uint32_t(x0 + int(i) % tw), uint32_t(y0 + int(i) / tw), settings.seed);
+                for (size_t i = 0; i < pixels; ++i) {
+                    pixelX[i] = x0 + int(i) % tw;
+                    pixelY[i] = y0 + int(i) / tw;
+                    streams[i] = pixelStream(uint32_t(pixelX[i]), uint32_t(pixelY[i]), settings.seed);
+                }
                 // Path q is sample q / pixels of pixel q % pixels: batches run through the samples in order.
                 const size_t count = pixels * size_t(std::max(0, settings.spp));
                 for (size_t first = 0; first < count; first += batch) {
@@ -532,17 +543,30 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     cameraHits.resize(m);
                     samplerOf.resize(m);
                     jitters.resize(m);
-                    for (size_t k = 0; k < m; ++k)
-                        samplers.emplace_back(streams[(first + k) % pixels], uint32_t((first + k) / pixels));
+                    pixelOf.resize(m);
+                    // Each path's pixel and sample number, counted on from the batch's first path's.
+                    for (size_t k = 0, pixel = first % pixels, sample = first / pixels; k < m; ++k) {
+                        pixelOf[k] = uint32_t(pixel);
+                        samplers.emplace_back(streams[pixel], uint32_t(sample));
+                        if (++pixel == pixels) {
+                            pixel = 0;
+                            ++sample;
+                        }
+                    }
                     for (size_t k = 0; k < m; ++k) samplerOf[k] = &samplers[k];
                     next2D(samplerOf.data(), m, 1, jitters.data());
+                    rasterX.resize(m);
+                    rasterY.resize(m);
                     for (size_t k = 0; k < m; ++k) {
-                        const size_t i = (first + k) % pixels;
-                        rays.generate(float(x0 + int(i) % tw) + jitters[k].x, float(y0 + int(i) / tw) + jitters[k].y,
-                                      cameraRays[k].origin, cameraRays[k].direction);
+                        rasterX[k] = float(pixelX[pixelOf[k]]) + jitters[k].x;
+                        rasterY[k] = float(pixelY[pixelOf[k]]) + jitters[k].y;
                     }
+                    rays.generate(rasterX.data(), rasterY.data(), m, cameraRays.data());
                     counters.primary += m;
                     accel_.intersect(cameraRays.data(), m, cameraHits.data(), settings.coherentCameraRays);
+                    if (!scene_.textures.empty())
+                        for (size_t k = 0; k < m; ++k)
+                            if (cameraHits[k].valid()) prefetchInteraction(scene_, cameraHits[k]);
                     paths.clear();
                     pathOf.resize(m);
                     for (size_t k = 0; k < m; ++k) {
@@ -560,13 +584,13 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                         const glm::vec3 L = pathOf[k] == UINT32_MAX ? skyRadiance(scene_, cameraRays[k].direction)
                                                                     : paths[pathOf[k]].L;
                         if (isFinite(L))
-                            sums[(first + k) % pixels] += glm::dvec3(L);
+                            sums[pixelOf[k]] += glm::dvec3(L);
                         else
                             ++counters.nonFiniteSamples;
                     }
                 }
                 for (size_t i = 0; i < pixels; ++i)
-                    image.at(x0 + int(i) % tw, y0 + int(i) / tw) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
+                    image.at(pixelX[i], pixelY[i]) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
             }
             int done = ++tilesDone;
             if (progress) progress(double(done) / double(tileCount));

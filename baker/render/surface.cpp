@@ -94,6 +94,16 @@ eval::Surface shadingSurface(const SurfaceInteraction& si) {
     return s;
 }
 
+void prefetchInteraction(const Scene& scene, const Hit& hit) {
+    const TriangleMesh& mesh = scene.mesh;
+    const Material& m = scene.materials[mesh.materialIds[hit.triangle]];
+    const glm::uvec3& tri = mesh.triangles[hit.triangle];
+    const float b1 = hit.u, b2 = hit.v, b0 = 1.0f - b1 - b2;
+    for (const TextureRef* ref : {&m.baseColorTexture, &m.normalTexture, &m.metallicRoughnessTexture, &m.emissiveTexture,
+                                  &m.transmissionTexture})
+        if (ref->valid()) scene.textures[size_t(ref->texture)].prefetch(ref->apply(texCoord(mesh, tri, b0, b1, b2, ref->texCoord)));
+}
+
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction) {
     const TriangleMesh& mesh = scene.mesh;
     const glm::uvec3& tri = mesh.triangles[hit.triangle];

@@ -42,6 +42,11 @@ float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v);
 // holds there.
 eval::Surface shadingSurface(const SurfaceInteraction& si);
 
+// Asks the memory system for the texels makeInteraction will read for this hit (a hint: lookups into large
+// textures miss the caches nearly every time, and a lookup is too long for the processor to overlap the
+// misses of several on its own, so a batch prefetches all its hits' texels before making any of them).
+void prefetchInteraction(const Scene& scene, const Hit& hit);
+
 // Builds the interaction for a hit of a ray travelling along `direction`.
 SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);
 

@@ -4,7 +4,36 @@
 #include <array>
 #include <cmath>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 namespace nrad {
+
+namespace detail {
+
+namespace {
+constexpr std::size_t kLargePage = std::size_t(2) << 20;
+}
+
+void* allocateLarge(std::size_t bytes) {
+    if (bytes < kLargePage) {
+        void* p = std::malloc(bytes == 0 ? 1 : bytes);
+        if (!p) throw std::bad_alloc();
+        return p;
+    }
+    const std::size_t rounded = (bytes + kLargePage - 1) / kLargePage * kLargePage;
+    void* p = std::aligned_alloc(kLargePage, rounded);
+    if (!p) throw std::bad_alloc();
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    madvise(p, rounded, MADV_HUGEPAGE);  // advice only: without transparent huge pages nothing changes
+#endif
+    return p;
+}
+
+void freeLarge(void* p) noexcept { std::free(p); }
+
+}  // namespace detail
 
 namespace {
 
@@ -28,23 +57,74 @@ int wrapIndex(int i, int n, WrapMode mode) {
 
 glm::vec4 Texture::sample(glm::vec2 uv) const {
     if (width <= 0 || height <= 0) return glm::vec4(1.0f);
-    // Keep the coordinate in a range where float->int conversion is safe, without changing the wrap result.
     float x = uv.x * float(width) - 0.5f;
     float y = uv.y * float(height) - 0.5f;
-    if (!std::isfinite(x) || !std::isfinite(y)) return average;
+    // Keep the coordinate in a range where float->int conversion is safe, without changing the wrap result (one
+    // test for the common case; not finite fails it too).
     const float rangeX = float(2 * width * 1024), rangeY = float(2 * height * 1024);
-    if (!(std::abs(x) < rangeX)) x = std::fmod(x, rangeX);  // fmod leaves a smaller magnitude as it is
-    if (!(std::abs(y) < rangeY)) y = std::fmod(y, rangeY);
-    float fx = std::floor(x), fy = std::floor(y);
-    float tx = x - fx, ty = y - fy;
-    int x0 = int(fx), y0 = int(fy);
-    int xa = wrapIndex(x0, width, wrapS), xb = wrapIndex(x0 + 1, width, wrapS);
-    int ya = wrapIndex(y0, height, wrapT), yb = wrapIndex(y0 + 1, height, wrapT);
-    const glm::vec4 a = texel(size_t(ya) * width + xa);
-    const glm::vec4 b = texel(size_t(ya) * width + xb);
-    const glm::vec4 c = texel(size_t(yb) * width + xa);
-    const glm::vec4 d = texel(size_t(yb) * width + xb);
+    if (!(std::abs(x) < rangeX) || !(std::abs(y) < rangeY)) [[unlikely]] {
+        if (!std::isfinite(x) || !std::isfinite(y)) return average;
+        if (!(std::abs(x) < rangeX)) x = std::fmod(x, rangeX);  // fmod leaves a smaller magnitude as it is
+        if (!(std::abs(y) < rangeY)) y = std::fmod(y, rangeY);
+    }
+    const float fx = std::floor(x), fy = std::floor(y);
+    const float tx = x - fx, ty = y - fy;
+    const int x0 = int(fx), y0 = int(fy);
+    // The four texels: row-major neighbours where the footprint lies inside the image (no wrapping), else wrapped.
+    size_t ia, ib, ic, id;
+    if (unsigned(x0) < unsigned(width - 1) && unsigned(y0) < unsigned(height - 1)) [[likely]] {
+        ia = size_t(y0) * size_t(width) + size_t(x0);
+        ib = ia + 1;
+        ic = ia + size_t(width);
+        id = ic + 1;
+    } else {
+        const size_t xa = size_t(wrapIndex(x0, width, wrapS)), xb = size_t(wrapIndex(x0 + 1, width, wrapS));
+        const size_t ya = size_t(wrapIndex(y0, height, wrapT)), yb = size_t(wrapIndex(y0 + 1, height, wrapT));
+        ia = ya * size_t(width) + xa;
+        ib = ya * size_t(width) + xb;
+        ic = yb * size_t(width) + xa;
+        id = yb * size_t(width) + xb;
+    }
+    glm::vec4 a, b, c, d;
+    if (!bytes.empty()) {
+        // Each texel's four bytes in one load (a lookup that misses the cache then waits on four loads, not 16, so
+        // more lookups' misses overlap), decoded as texel() does.
+        const uint32_t wa = word(ia), wb = word(ib), wc = word(ic), wd = word(id);
+        a = decode(wa), b = decode(wb), c = decode(wc), d = decode(wd);
+    } else {
+        a = texels[ia], b = texels[ib], c = texels[ic], d = texels[id];
+    }
     return (a * (1.0f - tx) + b * tx) * (1.0f - ty) + (c * (1.0f - tx) + d * tx) * ty;
+}
+
+namespace {
+// A prefetch hint as an instruction the compiler keeps: GCC drops __builtin_prefetch from a function it finds
+// otherwise free of side effects (and so calls to it), which would silently make these hints nothing.
+inline void prefetchLine(const void* p) {
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+    asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
+#elif defined(__GNUC__) && defined(__aarch64__)
+    asm volatile("prfm pldl1keep, %0" : : "Q"(*static_cast<const char*>(p)));
+#else
+    (void)p;
+#endif
+}
+}  // namespace
+
+void Texture::prefetch(glm::vec2 uv) const {
+    if (width <= 0 || height <= 0) return;
+    const float x = uv.x * float(width) - 0.5f, y = uv.y * float(height) - 0.5f;
+    // The footprint's top-left texel and the one below it (their rows' cache lines); outside the image (where
+    // sample() wraps) nothing: rare, and a hint is not worth the wrapping.
+    if (!(x >= 0.0f && x < float(width - 1) && y >= 0.0f && y < float(height - 1))) return;
+    const size_t i = size_t(y) * size_t(width) + size_t(x);
+    if (bytes.empty()) {
+        prefetchLine(&texels[i]);
+        prefetchLine(&texels[i + size_t(width)]);
+    } else {
+        prefetchLine(&bytes[4 * i]);
+        prefetchLine(&bytes[4 * (i + size_t(width))]);
+    }
 }
 
 void Texture::computeAverage() {

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "baker/render/accel.h"
+#include "baker/render/camera.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/lights/light_selection.h"
 #include "baker/render/path_tracer.h"
@@ -94,6 +95,36 @@ TEST(Accel, StreamsGiveTheSingleRayResultsBitForBit) {
 // and more than a tile's pixels, on scenes
 // that exercise area lights and glossy metal, punctual lights with alpha blending, textures, a sky seen
 // through a level's openings (escaped paths) and a light selector (the per-path selection buffers).
+// A batch's camera rays (generated in vectorised loops) are the one-ray generate()'s, bit for bit: a turned
+// perspective camera and an orthographic one, random raster points, the image's corners and chunks' edges.
+TEST(CameraRays, BatchIsTheOneRayCallBitForBit) {
+    std::mt19937 rng(3);
+    Camera camera;
+    camera.position = glm::vec3(0.3f, -2.0f, 7.5f);
+    const glm::vec3 right = glm::normalize(glm::vec3(0.9f, 0.1f, -0.3f));
+    const glm::vec3 up = glm::normalize(glm::cross(glm::vec3(0.2f, 0.1f, 1.0f), right));
+    camera.worldFromCamera = glm::mat3(right, up, glm::cross(right, up));
+    camera.yfov = 0.9f;
+    camera.ymag = 2.5f;
+    for (Camera::Type type : {Camera::Type::Perspective, Camera::Type::Orthographic}) {
+        camera.type = type;
+        const CameraRays rays(camera, 97, 61);
+        std::uniform_real_distribution<float> ux(0.0f, 97.0f), uy(0.0f, 61.0f);
+        std::vector<float> x, y;
+        for (float cx : {0.0f, 97.0f})
+            for (float cy : {0.0f, 61.0f}) x.push_back(cx), y.push_back(cy);
+        while (x.size() < 203) x.push_back(ux(rng)), y.push_back(uy(rng));
+        std::vector<RayQuery> batch(x.size());
+        rays.generate(x.data(), y.data(), x.size(), batch.data());
+        for (size_t k = 0; k < x.size(); ++k) {
+            glm::vec3 o, d;
+            rays.generate(x[k], y[k], o, d);
+            ASSERT_EQ(std::memcmp(&o, &batch[k].origin, sizeof o), 0) << k;
+            ASSERT_EQ(std::memcmp(&d, &batch[k].direction, sizeof d), 0) << k;
+        }
+    }
+}
+
 TEST(PathTracer, BatchedImageIsTheOnePathImageBitForBit) {
     struct Case {
         const char* scene;

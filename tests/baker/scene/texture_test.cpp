@@ -1,6 +1,9 @@
 // Texture lookups (bilinear, wrap modes) and the sRGB transfer functions.
 #include "baker/scene/texture.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <random>
 
@@ -101,6 +104,101 @@ TEST(Texture, ByteTexelsLookUpAsTheirDecodedFloats) {
         EXPECT_EQ(unitOfByte()[v], float(v) / 255.0f);
         EXPECT_EQ(linearOfSrgbByte()[v], srgbToLinear(float(v) / 255.0f));
     }
+}
+
+// The lookup by its definition, every texel index through the wrap mode (what Texture::sample computed before
+// its footprint inside the image skipped the wrapping): the reference for the fast path.
+int wrapPlain(int i, int n, WrapMode mode) {
+    switch (mode) {
+        case WrapMode::ClampToEdge: return std::clamp(i, 0, n - 1);
+        case WrapMode::MirroredRepeat: {
+            const int m = ((i % (2 * n)) + 2 * n) % (2 * n);
+            return m < n ? m : 2 * n - 1 - m;
+        }
+        case WrapMode::Repeat:
+        default: return ((i % n) + n) % n;
+    }
+}
+
+glm::vec4 plainSample(const Texture& t, glm::vec2 uv) {
+    float x = uv.x * float(t.width) - 0.5f, y = uv.y * float(t.height) - 0.5f;
+    if (!std::isfinite(x) || !std::isfinite(y)) return t.average;
+    const float rangeX = float(2 * t.width * 1024), rangeY = float(2 * t.height * 1024);
+    if (!(std::abs(x) < rangeX)) x = std::fmod(x, rangeX);
+    if (!(std::abs(y) < rangeY)) y = std::fmod(y, rangeY);
+    const float fx = std::floor(x), fy = std::floor(y), tx = x - fx, ty = y - fy;
+    const int x0 = int(fx), y0 = int(fy);
+    const int xa = wrapPlain(x0, t.width, t.wrapS), xb = wrapPlain(x0 + 1, t.width, t.wrapS);
+    const int ya = wrapPlain(y0, t.height, t.wrapT), yb = wrapPlain(y0 + 1, t.height, t.wrapT);
+    auto texel = [&](int xi, int yi) {
+        const size_t i = size_t(yi) * size_t(t.width) + size_t(xi);
+        if (t.bytes.empty()) return t.texels[i];
+        const uint8_t* b = &t.bytes[4 * i];
+        return glm::vec4(t.colour[b[0]], t.colour[b[1]], t.colour[b[2]], t.alpha[b[3]]);
+    };
+    const glm::vec4 a = texel(xa, ya), b = texel(xb, ya), c = texel(xa, yb), d = texel(xb, yb);
+    return (a * (1.0f - tx) + b * tx) * (1.0f - ty) + (c * (1.0f - tx) + d * tx) * ty;
+}
+
+// sample() takes the four texels as row-major neighbours where the footprint lies inside the image and reads
+// a byte texel's four bytes as one word: every lookup must give the definition's bits, inside, on the edges
+// (the footprint half outside, wrapped) and outside, for every wrap mode, byte and float texels, images down to
+// one texel wide; and the prefetch hint, anywhere, changes nothing.
+TEST(Texture, FastFootprintIsTheWrappedDefinitionBitForBit) {
+    std::mt19937 rng(11);
+    const WrapMode modes[] = {WrapMode::Repeat, WrapMode::ClampToEdge, WrapMode::MirroredRepeat};
+    for (int size : {1, 2, 5, 64})
+        for (bool asBytes : {true, false})
+            for (WrapMode ws : modes)
+                for (WrapMode wt : modes) {
+                    Texture t;
+                    t.width = size;
+                    t.height = size + 1;
+                    t.wrapS = ws;
+                    t.wrapT = wt;
+                    const size_t n = size_t(t.width) * size_t(t.height);
+                    if (asBytes) {
+                        t.colour = linearOfSrgbByte();
+                        t.alpha = unitOfByte();
+                        for (size_t i = 0; i < 4 * n; ++i) t.bytes.push_back(uint8_t(rng() & 255u));
+                    } else {
+                        std::uniform_real_distribution<float> v(0.0f, 4.0f);
+                        for (size_t i = 0; i < n; ++i) t.texels.emplace_back(v(rng), v(rng), v(rng), v(rng));
+                    }
+                    t.computeAverage();
+                    std::uniform_real_distribution<float> inside(0.0f, 1.0f), near(-1.5f, 2.5f);
+                    const float edges[] = {0.0f, 0.5f / float(size), 1.0f - 0.5f / float(size), 1.0f, -1e-7f, 1.0f + 1e-7f};
+                    for (int i = 0; i < 3000; ++i) {
+                        glm::vec2 uv;
+                        if (i % 3 == 0)
+                            uv = {inside(rng), inside(rng)};
+                        else if (i % 3 == 1)
+                            uv = {near(rng), near(rng)};
+                        else
+                            uv = {edges[rng() % 6], i % 2 ? edges[rng() % 6] : inside(rng)};
+                        t.prefetch(uv);
+                        const glm::vec4 got = t.sample(uv), want = plainSample(t, uv);
+                        ASSERT_EQ(std::memcmp(&got, &want, sizeof got), 0)
+                            << "size " << size << (asBytes ? " bytes" : " floats") << " uv " << uv.x << ", " << uv.y;
+                    }
+                    for (glm::vec2 uv : {glm::vec2(NAN, 0.5f), glm::vec2(0.5f, INFINITY), glm::vec2(3e9f, -3e9f)}) {
+                        t.prefetch(uv);
+                        const glm::vec4 got = t.sample(uv), want = plainSample(t, uv);
+                        EXPECT_EQ(std::memcmp(&got, &want, sizeof got), 0) << "uv " << uv.x << ", " << uv.y;
+                    }
+                }
+}
+
+// Texture storage: large images aligned to 2 MiB (where the kernel may back them with huge pages), small ones
+// plain; either holds and copies its values.
+TEST(Texture, LargeImagesAreAlignedForHugePages) {
+    std::vector<uint8_t, LargePageAllocator<uint8_t>> large(size_t(4) << 20, 7), small(100, 3);
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(large.data()) % (uintptr_t(2) << 20), 0u);
+    EXPECT_EQ(large[(size_t(4) << 20) - 1], 7);
+    EXPECT_EQ(small[99], 3);
+    auto copy = large;
+    EXPECT_EQ(copy.size(), large.size());
+    EXPECT_EQ(std::memcmp(copy.data(), large.data(), large.size()), 0);
 }
 
 }  // namespace
