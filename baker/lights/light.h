@@ -93,6 +93,8 @@ LightSample punctualLightSample(const PunctualLight& light, const glm::vec3& p);
 // Radiance arriving along wi (unit) from outside the scene: the environment and the disks of soft suns. What a
 // camera ray that misses every surface sees.
 glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi);
+// Whether skyRadiance is the same along every direction (no environment map, no soft suns).
+bool skyIsUniform(const Scene& scene);
 
 // Angular falloff of a KHR_lights_punctual spot light (smoothstep-like squared ramp from the spec).
 float spotAttenuation(const PunctualLight& light, const glm::vec3& wFromLight);

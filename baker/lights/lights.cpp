@@ -146,6 +146,13 @@ glm::vec3 skyRadiance(const Scene& scene, const glm::vec3& wi) {
     return L;
 }
 
+bool skyIsUniform(const Scene& scene) {
+    if (scene.environment.kind == Environment::Kind::Map) return false;
+    for (const PunctualLight& l : scene.lights)
+        if (l.soft()) return false;
+    return true;
+}
+
 TriangleLight::TriangleLight(const Scene& scene, uint32_t triangle, double power)
     : scene_(scene), triangle_(triangle), area_(scene.mesh.triangleArea(triangle)), power_(power),
       normal_(scene.mesh.geometricNormal(triangle)), margin_(triangleMargin(scene.mesh, triangle)),

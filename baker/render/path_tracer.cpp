@@ -479,6 +479,9 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
     std::atomic<int> tilesDone{0};
 
     const bool batched = settings.batchSize > 1;
+    // What a camera ray that leaves the scene sees, computed once where it is the same in every direction.
+    const bool uniformSky = skyIsUniform(scene_);
+    const glm::vec3 uniformSkyRadiance = uniformSky ? skyRadiance(scene_, glm::vec3(0.0f, 0.0f, 1.0f)) : glm::vec3(0.0f);
     const size_t batch = size_t(std::max(1, settings.batchSize));
     const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
 
@@ -581,8 +584,9 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
                     for (size_t k = 0; k < m; ++k) {
                         // The sky (and suns' disks) where the camera ray left the scene.
-                        const glm::vec3 L = pathOf[k] == UINT32_MAX ? skyRadiance(scene_, cameraRays[k].direction)
-                                                                    : paths[pathOf[k]].L;
+                        const glm::vec3 L = pathOf[k] != UINT32_MAX ? paths[pathOf[k]].L
+                                            : uniformSky                ? uniformSkyRadiance
+                                                                        : skyRadiance(scene_, cameraRays[k].direction);
                         if (isFinite(L))
                             sums[pixelOf[k]] += glm::dvec3(L);
                         else
