@@ -156,6 +156,10 @@ struct PathTracer::Path {
     void start(const SurfaceInteraction& at, Sampler* s, float* probsBuffer) {
         *this = Path{};
         si = at;
+        attach(s, probsBuffer);
+    }
+    // start() for a path just constructed, its interaction written after.
+    void attach(Sampler* s, float* probsBuffer) {
         sampler = s;
         if (probsBuffer) {
             probs = probsBuffer;
@@ -298,7 +302,7 @@ bool PathTracer::arrive(Path& p, const Hit& hit) const {
         });
         return false;
     }
-    p.si = makeInteraction(scene_, hit, p.extension.direction);
+    makeInteraction(scene_, hit, p.extension.direction, p.si);
     ++p.depth;
     return true;
 }
@@ -578,8 +582,9 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                             continue;
                         }
                         pathOf[k] = uint32_t(paths.size());
-                        paths.emplace_back().start(makeInteraction(scene_, cameraHits[k], cameraRays[k].direction), &samplers[k],
-                                                   probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+                        Path& p = paths.emplace_back();
+                        p.attach(&samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+                        makeInteraction(scene_, cameraHits[k], cameraRays[k].direction, p.si);
                     }
                     traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
                     for (size_t k = 0; k < m; ++k) {

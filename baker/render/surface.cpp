@@ -104,11 +104,10 @@ void prefetchInteraction(const Scene& scene, const Hit& hit) {
         if (ref->valid()) scene.textures[size_t(ref->texture)].prefetch(ref->apply(texCoord(mesh, tri, b0, b1, b2, ref->texCoord)));
 }
 
-SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction) {
+void makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction, SurfaceInteraction& si) {
     const TriangleMesh& mesh = scene.mesh;
     const glm::uvec3& tri = mesh.triangles[hit.triangle];
     float b1 = hit.u, b2 = hit.v, b0 = 1.0f - b1 - b2;
-    SurfaceInteraction si;
     si.triangle = hit.triangle;
     si.p = b0 * mesh.positions[tri.x] + b1 * mesh.positions[tri.y] + b2 * mesh.positions[tri.z];
     si.wo = -direction;
@@ -151,7 +150,6 @@ SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm
     si.bsdf.roughness = std::clamp(si.bsdf.roughness, 0.0f, 1.0f);
     si.emission = emittedRadiance(scene, m, hit.triangle, hit.u, hit.v, si.frontFace);
     si.margin = hit.margin >= 0.0f ? hit.margin : triangleMargin(mesh, hit.triangle);
-    return si;
 }
 
 }  // namespace nrad

@@ -47,7 +47,12 @@ eval::Surface shadingSurface(const SurfaceInteraction& si);
 // misses of several on its own, so a batch prefetches all its hits' texels before making any of them).
 void prefetchInteraction(const Scene& scene, const Hit& hit);
 
-// Builds the interaction for a hit of a ray travelling along `direction`.
-SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction);
+// Builds the interaction for a hit of a ray travelling along `direction` (into `si`: every member written).
+void makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction, SurfaceInteraction& si);
+inline SurfaceInteraction makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direction) {
+    SurfaceInteraction si;
+    makeInteraction(scene, hit, direction, si);
+    return si;
+}
 
 }  // namespace nrad
