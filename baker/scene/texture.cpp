@@ -85,15 +85,7 @@ glm::vec4 Texture::sample(glm::vec2 uv) const {
         ic = yb * size_t(width) + xa;
         id = yb * size_t(width) + xb;
     }
-    glm::vec4 a, b, c, d;
-    if (!bytes.empty()) {
-        // Each texel's four bytes in one load (a lookup that misses the cache then waits on four loads, not 16, so
-        // more lookups' misses overlap), decoded as texel() does.
-        const uint32_t wa = word(ia), wb = word(ib), wc = word(ic), wd = word(id);
-        a = decode(wa), b = decode(wb), c = decode(wc), d = decode(wd);
-    } else {
-        a = texels[ia], b = texels[ib], c = texels[ic], d = texels[id];
-    }
+    const glm::vec4 a = texel(ia), b = texel(ib), c = texel(ic), d = texel(id);
     return (a * (1.0f - tx) + b * tx) * (1.0f - ty) + (c * (1.0f - tx) + d * tx) * ty;
 }
 

@@ -36,7 +36,8 @@ struct Texture {
     WrapMode wrapT = WrapMode::Repeat;
     glm::vec4 average{0.0f};  // mean texel, for light power estimates
 
-    // The four bytes of texel i as one little-endian word (R in the low byte), and their decoded value.
+    // The four bytes of texel i as one little-endian word (R in the low byte; one load instead of four), and
+    // their decoded value.
     uint32_t word(size_t i) const {
         const uint8_t* b = &bytes[4 * i];
         uint32_t w;
