@@ -68,6 +68,11 @@ public:
     float area() const { return area_; }
     // Whether its radiance varies over it (an emissive texture): else sampleAt ignores b1 and b2.
     bool textured() const { return textured_; }
+    // What sampleAt uses: the geometric normal, the margin, the untextured radiance towards either side.
+    const glm::vec3& normal() const { return normal_; }
+    float margin() const { return margin_; }
+    const glm::vec3& frontRadiance() const { return frontRadiance_; }
+    const glm::vec3& backRadiance() const { return backRadiance_; }
 
 private:
     const Scene& scene_;

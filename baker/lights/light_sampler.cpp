@@ -79,6 +79,28 @@ LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     return sampleEntry(i, pickProbability(i), p, u);
 }
 
+bool LightSampler::pickQuad(glm::vec2 u, QuadPick& out) const {
+    // sample() and sampleParallelogram() up to the call of sampleAt, operation for operation.
+    if (lights_.empty()) return false;
+    const size_t i = pick(cdf_, u.x);
+    const Group& group = groups_[groupOfEntry_[i]];
+    if (!group.parallelogram || group.entries[1] != group.entries[0] + 1) return false;
+    const size_t a = group.entries[0], b = group.entries[1];
+    const double lo = a > 0 ? cdf_[a - 1] : 0.0;
+    u.x = rescale(u.x, lo, cdf_[b] - lo);
+    const size_t e = group.entries[u.x + u.y <= 1.0f ? 0 : 1];
+    const auto& light = static_cast<const TriangleLight&>(*lights_[e]);
+    if (light.textured()) return false;
+    out.point = group.corner + u.x * group.edgeU + u.y * group.edgeV;
+    out.normal = light.normal();
+    out.front = light.frontRadiance();
+    out.back = light.backRadiance();
+    out.area = light.area();
+    out.margin = light.margin();
+    out.pick = pickProbability(e);
+    return true;
+}
+
 LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u,
                                               bool globalPick) const {
     // Uniform by area over the whole quad with one 2D sample, so that stratified samples stay stratified

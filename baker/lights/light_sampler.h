@@ -33,6 +33,19 @@ public:
     // its second. A stratified u.x thus stratifies the points on each light as well.
     LightSample sample(const glm::vec3& p, glm::vec2 u) const;
 
+    // The part of sample(p, u) that does not depend on p, where u picks a quad light (a parallelogram group)
+    // without an emissive texture: the point on it and what TriangleLight::sampleAt needs of the triangle
+    // the point lands in, for the rest of the sample in SIMD lanes (baker/render/nee_lanes.h). False where u
+    // picks any other light (then sample() is the way).
+    struct QuadPick {
+        glm::vec3 point;  // on the light
+        glm::vec3 normal;  // TriangleLight::normal()
+        glm::vec3 front, back;  // radiance towards either side
+        float area = 0.0f, margin = 0.0f;
+        float pick = 0.0f;  // probability of the entry (sample()'s pdf is sampleAt's times this)
+    };
+    bool pickQuad(glm::vec2 u, QuadPick& out) const;
+
     // Solid-angle pdf with which sample() produces point pLight (with normal nLight) on emissive
     // triangle `triangle`, seen from p. Zero for triangles that are not lights.
     float pdfTriangle(uint32_t triangle, const glm::vec3& p, const glm::vec3& pLight, const glm::vec3& nLight) const;

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "baker/render/bsdf.h"
+#include "baker/render/lane_math.h"
 #include "baker/render/sincos.h"
 
 namespace nrad {
@@ -15,21 +16,13 @@ namespace {
 
 constexpr float kPi = 3.14159265358979323846f;
 
-// The loops vectorise only with every helper inlined into them.
-#if defined(__GNUC__)
-#define LANE inline __attribute__((always_inline))
-#else
-#define LANE inline
-#endif
+#define LANE NRAD_LANE
+using namespace lanes;
 
-LANE float maxOf(float a, float b) { return a < b ? b : a; }  // std::max
-LANE float minOf(float a, float b) { return b < a ? b : a; }  // std::min
-LANE float clamp01(float v) { return v < 0.0f ? 0.0f : (1.0f < v ? 1.0f : v); }  // std::clamp(v, 0, 1)
 LANE float pow5(float x) {
     float x2 = x * x;
     return x2 * x2 * x;
 }
-LANE bool finite(float x) { return std::abs(x) <= FLT_MAX; }
 // Selects are written one condition at a time, on floats: GCC vectorises those, not nested or combined
 // boolean ones.
 

@@ -12,6 +12,7 @@
 #include "baker/render/bsdf.h"
 #include "baker/render/bsdf_lanes.h"
 #include "baker/render/camera.h"
+#include "baker/render/nee_lanes.h"
 #include "baker/render/surface.h"
 
 namespace nrad {
@@ -168,7 +169,8 @@ struct PathTracer::Path {
     }
 };
 
-bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, const ScatteredRadiance* tail) const {
+PathTracer::Next PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, const ScatteredRadiance* tail,
+                                          LightSampler::QuadPick* quad) const {
     const SurfaceInteraction& si = p.si;
     const int depth = p.depth, cutDepth = p.cutDepth;
     p.shadowPending = p.neePending = p.neeCandidate = false;
@@ -191,9 +193,9 @@ bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrac
         glm::vec3 Ls = (*tail)(si);
         if (excludeEngineDrawn_) Ls += engineDrawnDirect(scene_, accel_, si);
         if (isFinite(Ls)) p.L += p.beta * Ls;
-        return false;
+        return kEnd;
     }
-    if (maxDepth > 0 && depth + 1 >= maxDepth) return false;
+    if (maxDepth > 0 && depth + 1 >= maxDepth) return kEnd;
 
     // The sampler's dimensions are consumed in the same order at every vertex.
     // The light pick and the point on the light share one 2D point: the pick coordinate, rescaled within
@@ -214,6 +216,8 @@ bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrac
     // Next event estimation: the light sample (its BSDF terms come from shade()).
     p.recordHere = false;
     p.chosen = -1;
+    if (quad && !selector_ && !excludeEngineDrawn_ && si.bsdf.transmission == 0.0f && lights_.pickQuad(uLight, *quad))
+        return kQuadLanes;
     LightSample& ls = p.ls;
     ls = LightSample{};
     if (selector_ && lights_.groupCount() > 0) {
@@ -228,7 +232,7 @@ bool PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrac
     // Mixed lighting: the engine adds the direct light of its own lights itself.
     if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
     p.neeCandidate = ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, p.transmits, ls.wi);
-    return true;
+    return kShade;
 }
 
 void PathTracer::shade(Path& p) {
@@ -266,7 +270,12 @@ bool PathTracer::scatterEnd(Path& p, RayCounters& counters, std::vector<Recorded
         }
     }
 
+    return extend(p, counters, record);
+}
+
+bool PathTracer::extend(Path& p, RayCounters& counters, std::vector<RecordedRay>* record) const {
     // Continue the path by sampling the BSDF.
+    const SurfaceInteraction& si = p.si;
     const BsdfSample& bs = p.bs;
     if (!bs.valid() || !sameSideRule(si, p.transmits, bs.wi)) return false;
     p.beta *= bs.f * (std::abs(glm::dot(bs.wi, si.ns)) / bs.pdf);
@@ -315,7 +324,7 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
     p.start(si, &sampler, probs);
     p.cutDepth = cutDepth;
     for (;;) {
-        bool more = scatterBegin(p, nullptr, maxDepth, nee, tail);
+        bool more = scatterBegin(p, nullptr, maxDepth, nee, tail) != kEnd;
         if (more) {
             shade(p);
             more = scatterEnd(p, counters, record);
@@ -334,14 +343,37 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
 
 struct PathTracer::BatchScratch {
     BsdfLanes lanes;
+    NeeLanes nee;
     std::vector<uint32_t> inLanes;
-    std::vector<uint32_t> active, shading, shadowPaths, extensionPaths;
+    std::vector<uint32_t> active, shading, quadPaths, shadowPaths, extensionPaths;
+    std::vector<LightSampler::QuadPick> quadPicks;  // of quadPaths
     std::vector<RayQuery> queries;
     std::vector<uint8_t> blocked;
     std::vector<Hit> hits;
     std::vector<Sampler*> samplers;
     std::vector<glm::vec2> points;
 };
+
+namespace {
+// Lane k of `L`: path p's vertex (the light direction is its caller's).
+inline void packBsdf(BsdfLanes& L, size_t k, const SurfaceInteraction& si, float uLobe, const glm::vec2& uBsdf) {
+    L.nx[k] = si.ns.x, L.ny[k] = si.ns.y, L.nz[k] = si.ns.z;
+    L.wox[k] = si.wo.x, L.woy[k] = si.wo.y, L.woz[k] = si.wo.z;
+    L.baseR[k] = si.bsdf.baseColor.x, L.baseG[k] = si.bsdf.baseColor.y, L.baseB[k] = si.bsdf.baseColor.z;
+    L.metallic[k] = si.bsdf.metallic, L.roughness[k] = si.bsdf.roughness, L.specular[k] = si.bsdf.specular;
+    L.specR[k] = si.bsdf.specularColor.x, L.specG[k] = si.bsdf.specularColor.y, L.specB[k] = si.bsdf.specularColor.z;
+    L.ior[k] = si.bsdf.ior;
+    L.uLobe[k] = uLobe, L.u0[k] = uBsdf.x, L.u1[k] = uBsdf.y;
+}
+
+inline BsdfSample sampleOf(const BsdfLanes& L, size_t k) {
+    BsdfSample bs;
+    bs.wi = glm::vec3(L.sampleX[k], L.sampleY[k], L.sampleZ[k]);
+    bs.f = glm::vec3(L.sampleR[k], L.sampleG[k], L.sampleB[k]);
+    bs.pdf = L.samplePdf[k];
+    return bs;
+}
+}  // namespace
 
 void PathTracer::shadeBatch(Path* paths, BatchScratch& scratch) {
     // Materials without transmission in SIMD lanes (bsdf_lanes.h, the same bits as shade()), the rest one by one.
@@ -358,16 +390,9 @@ void PathTracer::shadeBatch(Path* paths, BatchScratch& scratch) {
         const size_t n = std::min(BsdfLanes::kLanes, inLanes.size() - first);
         for (size_t k = 0; k < n; ++k) {
             const Path& p = paths[inLanes[first + k]];
-            const SurfaceInteraction& si = p.si;
-            const glm::vec3 l = p.neeCandidate ? p.ls.wi : si.ns;
-            L.nx[k] = si.ns.x, L.ny[k] = si.ns.y, L.nz[k] = si.ns.z;
-            L.wox[k] = si.wo.x, L.woy[k] = si.wo.y, L.woz[k] = si.wo.z;
+            packBsdf(L, k, p.si, p.uLobe, p.uBsdf);
+            const glm::vec3 l = p.neeCandidate ? p.ls.wi : p.si.ns;
             L.lx[k] = l.x, L.ly[k] = l.y, L.lz[k] = l.z;
-            L.baseR[k] = si.bsdf.baseColor.x, L.baseG[k] = si.bsdf.baseColor.y, L.baseB[k] = si.bsdf.baseColor.z;
-            L.metallic[k] = si.bsdf.metallic, L.roughness[k] = si.bsdf.roughness, L.specular[k] = si.bsdf.specular;
-            L.specR[k] = si.bsdf.specularColor.x, L.specG[k] = si.bsdf.specularColor.y, L.specB[k] = si.bsdf.specularColor.z;
-            L.ior[k] = si.bsdf.ior;
-            L.uLobe[k] = p.uLobe, L.u0[k] = p.uBsdf.x, L.u1[k] = p.uBsdf.y;
         }
         shadeLanes(L, n);
         for (size_t k = 0; k < n; ++k) {
@@ -376,9 +401,41 @@ void PathTracer::shadeBatch(Path* paths, BatchScratch& scratch) {
                 p.neeEval = glm::vec3(L.evalR[k], L.evalG[k], L.evalB[k]);
                 p.neePdf = L.evalPdf[k];
             }
-            p.bs.wi = glm::vec3(L.sampleX[k], L.sampleY[k], L.sampleZ[k]);
-            p.bs.f = glm::vec3(L.sampleR[k], L.sampleG[k], L.sampleB[k]);
-            p.bs.pdf = L.samplePdf[k];
+            p.bs = sampleOf(L, k);
+        }
+    }
+}
+
+void PathTracer::neeBatch(Path* paths, BatchScratch& scratch, RayCounters& counters) {
+    NeeLanes& L = scratch.nee;
+    const std::vector<uint32_t>& quadPaths = scratch.quadPaths;
+    for (size_t first = 0; first < quadPaths.size(); first += NeeLanes::kLanes) {
+        const size_t n = std::min(NeeLanes::kLanes, quadPaths.size() - first);
+        for (size_t k = 0; k < n; ++k) {
+            const Path& p = paths[quadPaths[first + k]];
+            const SurfaceInteraction& si = p.si;
+            const LightSampler::QuadPick& q = scratch.quadPicks[first + k];
+            L.px[k] = si.p.x, L.py[k] = si.p.y, L.pz[k] = si.p.z;
+            L.ngx[k] = si.ng.x, L.ngy[k] = si.ng.y, L.ngz[k] = si.ng.z;
+            L.margin[k] = si.margin;
+            L.betaR[k] = p.beta.x, L.betaG[k] = p.beta.y, L.betaB[k] = p.beta.z;
+            L.plx[k] = q.point.x, L.ply[k] = q.point.y, L.plz[k] = q.point.z;
+            L.lnx[k] = q.normal.x, L.lny[k] = q.normal.y, L.lnz[k] = q.normal.z;
+            L.frontR[k] = q.front.x, L.frontG[k] = q.front.y, L.frontB[k] = q.front.z;
+            L.backR[k] = q.back.x, L.backG[k] = q.back.y, L.backB[k] = q.back.z;
+            L.area[k] = q.area, L.lightMargin[k] = q.margin, L.pick[k] = q.pick;
+            packBsdf(L.bsdf, k, si, p.uLobe, p.uBsdf);
+        }
+        neeLanes(L, n);
+        for (size_t k = 0; k < n; ++k) {
+            Path& p = paths[quadPaths[first + k]];
+            if (L.pending[k] > 0.0f) {
+                ++counters.shadow;
+                p.shadow = {p.si.p, glm::vec3(L.wix[k], L.wiy[k], L.wiz[k]), L.tnear[k], L.tfar[k]};
+                p.shadowPending = true;
+                p.neeContribution = glm::vec3(L.contribR[k], L.contribG[k], L.contribB[k]);
+            }
+            p.bs = sampleOf(L.bsdf, k);
         }
     }
 }
@@ -402,21 +459,31 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
         for (size_t k = 0; k < active.size(); ++k) scratch.samplers[k] = paths[active[k]].sampler;
         next2D(scratch.samplers.data(), active.size(), 3, scratch.points.data());
         scratch.shading.clear();
-        for (size_t k = 0; k < active.size(); ++k)
-            if (scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, tail))
+        scratch.quadPaths.clear();
+        scratch.quadPicks.resize(active.size());
+        for (size_t k = 0; k < active.size(); ++k) {
+            const Next next = scatterBegin(paths[active[k]], &scratch.points[3 * k], maxDepth, nullptr, tail,
+                                           &scratch.quadPicks[scratch.quadPaths.size()]);
+            if (next == kShade)
                 scratch.shading.push_back(active[k]);
+            else if (next == kQuadLanes)
+                scratch.quadPaths.push_back(active[k]);
+        }
         shadeBatch(paths, scratch);
-        for (uint32_t i : scratch.shading) {
+        neeBatch(paths, scratch, counters);
+        // The shadow query (unless there is no room for an occluder, see trace) and the extension ray.
+        auto rays = [&](uint32_t i, bool more) {
             Path& p = paths[i];
-            const bool more = scatterEnd(p, counters, nullptr);
             if (p.shadowPending) {
                 if (p.shadow.tfar > p.shadow.tnear)
                     scratch.shadowPaths.push_back(i);
                 else
-                    finishShadow(p, false, nullptr);  // no room for an occluder (see trace)
+                    finishShadow(p, false, nullptr);
             }
             if (more) scratch.extensionPaths.push_back(i);
-        }
+        };
+        for (uint32_t i : scratch.shading) rays(i, scatterEnd(paths[i], counters, nullptr));
+        for (uint32_t i : scratch.quadPaths) rays(i, extend(paths[i], counters, nullptr));
         const size_t shadows = scratch.shadowPaths.size(), extensions = scratch.extensionPaths.size();
         scratch.queries.resize(std::max(shadows, extensions));
         scratch.blocked.resize(shadows);

@@ -24,15 +24,13 @@ void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out) 
             dimension[k] = s.dimension_;
         }
         for (uint32_t j = 0; j < count; ++j) {
-            // Sampler::get2D, one step at a time over the chunk: the hashes and scrambles vectorise, the table
-            // lookups of the second Sobol dimension do not.
+            // Sampler::get2D over the chunk, in integer operations that all vectorise.
             for (size_t k = 0; k < m; ++k) {
                 seed[k] = hashCombine(stream[k], dimension[k] + j);
                 i[k] = reverseBits(laineKarrasPermutation(indexReversed[k], seed[k]));
                 x[k] = reverseBits(laineKarrasPermutation(i[k], seed[k] * 0x9e3779b9u + 0x632be5abu));
+                y[k] = reverseBits(laineKarrasPermutation(sobolDim1Reversed(i[k]), seed[k] * 0x85ebca6bu + 0x2c1b3c6du));
             }
-            for (size_t k = 0; k < m; ++k) i[k] = sobolDim1Reversed(i[k]);
-            for (size_t k = 0; k < m; ++k) y[k] = reverseBits(laineKarrasPermutation(i[k], seed[k] * 0x85ebca6bu + 0x2c1b3c6du));
             for (size_t k = 0; k < m; ++k) out[count * (first + k) + j] = glm::vec2(toUnitFloat(x[k]), toUnitFloat(y[k]));
         }
         for (size_t k = 0; k < m; ++k) samplers[first + k]->dimension_ += count;

@@ -46,39 +46,24 @@ inline uint32_t nestedUniformScramble(uint32_t x, uint32_t seed) {
     return reverseBits(laineKarrasPermutation(reverseBits(x), seed));
 }
 
-// Second Sobol dimension by bytes: XOR of the direction numbers of the set bits, 8 bits per lookup; and the
-// same of the bit-reversed direction numbers (its bit reversal, what Owen scrambling works on).
-struct SobolDim1Tables {
-    uint32_t byteTables[4][256];
-    uint32_t reversedByteTables[4][256];
-    SobolDim1Tables() {
-        uint32_t v[32];
-        v[0] = 1u << 31;
-        for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
-        for (int b = 0; b < 4; ++b)
-            for (uint32_t x = 0; x < 256; ++x) {
-                uint32_t r = 0;
-                for (int bit = 0; bit < 8; ++bit)
-                    if ((x >> bit) & 1u) r ^= v[b * 8 + bit];
-                byteTables[b][x] = r;
-                reversedByteTables[b][x] = reverseBits(r);
-            }
-    }
-};
-inline const SobolDim1Tables kSobolDim1Tables{};
-
 // First two Sobol dimensions as 32-bit fixed point.
 inline uint32_t sobolDim0(uint32_t index) { return reverseBits(index); }
-inline uint32_t sobolDim1(uint32_t index) {
-    const auto& t = kSobolDim1Tables.byteTables;
-    return t[0][index & 255u] ^ t[1][(index >> 8) & 255u] ^ t[2][(index >> 16) & 255u] ^ t[3][index >> 24];
-}
 
-// reverseBits(sobolDim1(index)).
+// The second dimension, bit reversed (what Owen scrambling works on). Its direction numbers are the rows of
+// Pascal's triangle mod 2 (v_k = v_{k-1} ^ (v_{k-1} >> 1)): bit j of the reversed value is the parity of
+// binomial(k, j) over the index's set bits k, and by Lucas' theorem binomial(k, j) is odd exactly where j's
+// bits are a subset of k's. So bit j is the XOR of the index's bits at the supersets of j: five steps, each
+// folding in the positions one bit of j higher, in shifts and masks that vectorise (no table lookups).
 inline uint32_t sobolDim1Reversed(uint32_t index) {
-    const auto& t = kSobolDim1Tables.reversedByteTables;
-    return t[0][index & 255u] ^ t[1][(index >> 8) & 255u] ^ t[2][(index >> 16) & 255u] ^ t[3][index >> 24];
+    uint32_t y = index;
+    y ^= (y >> 1) & 0x55555555u;
+    y ^= (y >> 2) & 0x33333333u;
+    y ^= (y >> 4) & 0x0f0f0f0fu;
+    y ^= (y >> 8) & 0x00ff00ffu;
+    y ^= (y >> 16) & 0x0000ffffu;
+    return y;
 }
+inline uint32_t sobolDim1(uint32_t index) { return reverseBits(sobolDim1Reversed(index)); }
 
 inline float toUnitFloat(uint32_t x) { return float(x >> 8) * 0x1p-24f; }  // in [0, 1)
 

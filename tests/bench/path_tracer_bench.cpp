@@ -8,7 +8,8 @@
 // 4. For reference, the same rays through Embree's streams as the batched tracer issues them.
 // Prints the rates and the tracer's ratio to each, for one thread and for all threads; best of several repetitions.
 //
-// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R] [--batch B]
+// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R] [--batch B] [--tracer-only]
+// (--tracer-only: render R times on one thread and print the tracer's rate alone, for a profiler.)
 // (--batch 1: the one-path tracer instead of the batched one)
 #include <algorithm>
 #include <chrono>
@@ -105,6 +106,7 @@ int main(int argc, char** argv) {
     s.width = s.height = 128;
     s.spp = 16;
     int repeat = 3;
+    bool tracerOnly = false;
     for (int i = 1; i < argc; ++i) {
         std::string a = argv[i];
         auto next = [&]() { return i + 1 < argc ? std::atoi(argv[++i]) : 0; };
@@ -113,6 +115,7 @@ int main(int argc, char** argv) {
         else if (a == "--max-depth") s.maxDepth = next();
         else if (a == "--repeat") repeat = std::max(1, next());
         else if (a == "--batch") s.batchSize = std::max(1, next());
+        else if (a == "--tracer-only") tracerOnly = true;
         else scenePath = a;
     }
     Scene scene = loadGltf(scenePath);
@@ -121,6 +124,12 @@ int main(int argc, char** argv) {
     PathTracer tracer(scene, accel, lights);
     Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];
 
+    if (tracerOnly) {
+        ThreadScope scope(1);
+        uint64_t tracerRays = 0;
+        std::printf("tracer Mrays/s %.2f\n", tracerRaysPerSecond(tracer, camera, s, repeat, &tracerRays) * 1e-6);
+        return 0;
+    }
     std::vector<RecordedRay> rays = tracer.recordRays(camera, s);
     size_t shadow = size_t(std::count_if(rays.begin(), rays.end(), [](const RecordedRay& r) { return r.shadow; }));
     std::printf("scene %s, %dx%d, %d spp, max depth %d, batches of %d paths: %zu rays recorded (%zu closest-hit, %zu shadow)\n",

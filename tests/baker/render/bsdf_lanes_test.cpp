@@ -11,21 +11,15 @@
 
 #include <gtest/gtest.h>
 
+#include "support/lane_checks.h"
+
 #include "baker/render/bsdf.h"
 
 namespace nrad {
 namespace {
 
-bool sameBits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
-
-glm::vec3 randomDirection(std::mt19937& rng) {
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    for (;;) {
-        glm::vec3 d(u(rng), u(rng), u(rng));
-        float l = glm::length(d);
-        if (l > 0.1f && l <= 1.0f) return d / l;
-    }
-}
+using test::randomDirection;
+using test::sameBits;
 
 TEST(BsdfLanes, AreTheBsdfBitForBit) {
     std::mt19937 rng(11);

@@ -19,6 +19,30 @@ TEST(Sampler, FirstTwoSobolDimensionsKnownValues) {
     EXPECT_EQ(sobolDim1(3), 0x40000000u);
 }
 
+// The second dimension's shift-and-mask form against its definition, the XOR of the direction numbers
+// v_0 = 1 << 31, v_k = v_{k-1} ^ (v_{k-1} >> 1) of the index's set bits: every index below 2^20, every single
+// bit, all ones and a hashed spread over the rest.
+TEST(Sampler, SecondDimensionIsTheDirectionNumbersDefinition) {
+    uint32_t v[32];
+    v[0] = 1u << 31;
+    for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+    auto definition = [&](uint32_t index) {
+        uint32_t r = 0;
+        for (int k = 0; k < 32; ++k)
+            if ((index >> k) & 1u) r ^= v[k];
+        return r;
+    };
+    std::vector<uint32_t> indices;
+    for (uint32_t i = 0; i < (1u << 20); ++i) indices.push_back(i);
+    for (int k = 0; k < 32; ++k) indices.push_back(1u << k);
+    indices.push_back(0xffffffffu);
+    for (uint32_t i = 0; i < 100000; ++i) indices.push_back(hashU32(i));
+    for (uint32_t index : indices) {
+        ASSERT_EQ(sobolDim1(index), definition(index)) << index;
+        ASSERT_EQ(sobolDim1Reversed(index), reverseBits(definition(index))) << index;
+    }
+}
+
 TEST(Sampler, EveryElementaryIntervalHoldsOnePoint) {
     // The first 256 points of any stream form a scrambled (0,8,2)-net: each of the 9 shapes of elementary
     // interval of area 1/256 (1x256, 2x128, ..., 256x1) contains exactly one point.
