@@ -35,7 +35,7 @@ public:
 
     // The part of sample(p, u) that does not depend on p, where u picks a quad light (a parallelogram group)
     // without an emissive texture: the point on it and what TriangleLight::sampleAt needs of the triangle
-    // the point lands in, for the rest of the sample in SIMD lanes (baker/render/nee_lanes.h). False where u
+    // the point lands in, for the rest of the sample in SIMD lanes (baker/render/scatter_lanes.h). False where u
     // picks any other light (then sample() is the way).
     struct QuadPick {
         glm::vec3 point;  // on the light

@@ -1,4 +1,4 @@
-// Helpers of the lanes kernels (bsdf_lanes.cpp, nee_lanes.cpp): the standard library's functions written as
+// Helpers of the lanes kernels (bsdf_lanes.cpp, scatter_lanes.cpp): the standard library's functions written as
 // the selects the compiler vectorises, with the same results as the functions they name.
 #pragma once
 

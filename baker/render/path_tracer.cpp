@@ -12,7 +12,7 @@
 #include "baker/render/bsdf.h"
 #include "baker/render/bsdf_lanes.h"
 #include "baker/render/camera.h"
-#include "baker/render/nee_lanes.h"
+#include "baker/render/scatter_lanes.h"
 #include "baker/render/surface.h"
 
 namespace nrad {
@@ -343,10 +343,11 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
 
 struct PathTracer::BatchScratch {
     BsdfLanes lanes;
-    NeeLanes nee;
+    ScatterLanes scatter;
     std::vector<uint32_t> inLanes;
     std::vector<uint32_t> active, shading, quadPaths, shadowPaths, extensionPaths;
     std::vector<LightSampler::QuadPick> quadPicks;  // of quadPaths
+    std::vector<uint8_t> quadMore;  // of quadPaths: whether the path goes on
     std::vector<RayQuery> queries;
     std::vector<uint8_t> blocked;
     std::vector<Hit> hits;
@@ -406,11 +407,13 @@ void PathTracer::shadeBatch(Path* paths, BatchScratch& scratch) {
     }
 }
 
-void PathTracer::neeBatch(Path* paths, BatchScratch& scratch, RayCounters& counters) {
-    NeeLanes& L = scratch.nee;
+void PathTracer::scatterBatch(Path* paths, BatchScratch& scratch, RayCounters& counters) const {
+    ScatterLanes& L = scratch.scatter;
+    L.rouletteThreshold = rouletteThreshold_;
     const std::vector<uint32_t>& quadPaths = scratch.quadPaths;
-    for (size_t first = 0; first < quadPaths.size(); first += NeeLanes::kLanes) {
-        const size_t n = std::min(NeeLanes::kLanes, quadPaths.size() - first);
+    scratch.quadMore.resize(quadPaths.size());
+    for (size_t first = 0; first < quadPaths.size(); first += ScatterLanes::kLanes) {
+        const size_t n = std::min(ScatterLanes::kLanes, quadPaths.size() - first);
         for (size_t k = 0; k < n; ++k) {
             const Path& p = paths[quadPaths[first + k]];
             const SurfaceInteraction& si = p.si;
@@ -419,6 +422,8 @@ void PathTracer::neeBatch(Path* paths, BatchScratch& scratch, RayCounters& count
             L.ngx[k] = si.ng.x, L.ngy[k] = si.ng.y, L.ngz[k] = si.ng.z;
             L.margin[k] = si.margin;
             L.betaR[k] = p.beta.x, L.betaG[k] = p.beta.y, L.betaB[k] = p.beta.z;
+            L.uRoulette[k] = p.uRoulette;
+            L.roulette[k] = p.depth + 1 >= kRouletteStart && p.cutDepth == 0 ? 1.0f : 0.0f;
             L.plx[k] = q.point.x, L.ply[k] = q.point.y, L.plz[k] = q.point.z;
             L.lnx[k] = q.normal.x, L.lny[k] = q.normal.y, L.lnz[k] = q.normal.z;
             L.frontR[k] = q.front.x, L.frontG[k] = q.front.y, L.frontB[k] = q.front.z;
@@ -426,7 +431,7 @@ void PathTracer::neeBatch(Path* paths, BatchScratch& scratch, RayCounters& count
             L.area[k] = q.area, L.lightMargin[k] = q.margin, L.pick[k] = q.pick;
             packBsdf(L.bsdf, k, si, p.uLobe, p.uBsdf);
         }
-        neeLanes(L, n);
+        scatterLanes(L, n);
         for (size_t k = 0; k < n; ++k) {
             Path& p = paths[quadPaths[first + k]];
             if (L.pending[k] > 0.0f) {
@@ -435,7 +440,17 @@ void PathTracer::neeBatch(Path* paths, BatchScratch& scratch, RayCounters& count
                 p.shadowPending = true;
                 p.neeContribution = glm::vec3(L.contribR[k], L.contribG[k], L.contribB[k]);
             }
-            p.bs = sampleOf(L.bsdf, k);
+            // extend()
+            const bool more = L.more[k] > 0.0f;
+            scratch.quadMore[first + k] = more;
+            if (!more) continue;
+            p.beta = glm::vec3(L.betaR[k], L.betaG[k], L.betaB[k]);
+            p.prevBsdfPdf = L.bsdf.samplePdf[k];
+            p.prevP = p.si.p;
+            std::swap(p.probs, p.prevProbs);
+            ++counters.extension;
+            p.extension = {p.si.p, glm::vec3(L.bsdf.sampleX[k], L.bsdf.sampleY[k], L.bsdf.sampleZ[k]), L.extensionTnear[k],
+                           std::numeric_limits<float>::infinity()};
         }
     }
 }
@@ -470,7 +485,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
                 scratch.quadPaths.push_back(active[k]);
         }
         shadeBatch(paths, scratch);
-        neeBatch(paths, scratch, counters);
+        scatterBatch(paths, scratch, counters);
         // The shadow query (unless there is no room for an occluder, see trace) and the extension ray.
         auto rays = [&](uint32_t i, bool more) {
             Path& p = paths[i];
@@ -483,7 +498,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
             if (more) scratch.extensionPaths.push_back(i);
         };
         for (uint32_t i : scratch.shading) rays(i, scatterEnd(paths[i], counters, nullptr));
-        for (uint32_t i : scratch.quadPaths) rays(i, extend(paths[i], counters, nullptr));
+        for (size_t k = 0; k < scratch.quadPaths.size(); ++k) rays(scratch.quadPaths[k], scratch.quadMore[k] != 0);
         const size_t shadows = scratch.shadowPaths.size(), extensions = scratch.extensionPaths.size();
         scratch.queries.resize(std::max(shadows, extensions));
         scratch.blocked.resize(shadows);

@@ -162,7 +162,7 @@ private:
     // shadow query and contribution, the throughput and Russian roulette; returns whether the path goes on
     // along p.extension. finishShadow: the pending contribution, unless its shadow ray is blocked. arrive:
     // the extension ray's hit (false: it left the scene, whose light is added).
-    // With `quad` (the batched tracer), scatterBegin leaves the light sample to neeBatch where it picks a quad
+    // With `quad` (the batched tracer), scatterBegin leaves the light sample to scatterBatch where it picks a quad
     // light without texture at a vertex without transmission: it returns kQuadLanes with the pick in *quad.
     enum Next { kEnd, kShade, kQuadLanes };
     Next scatterBegin(Path& p, const glm::vec2* u, int maxDepth, NeeTrace* nee, const ScatteredRadiance* tail,
@@ -170,9 +170,9 @@ private:
     static void shade(Path& p);
     // shade() for the paths in scratch.shading.
     static void shadeBatch(Path* paths, BatchScratch& scratch);
-    // The light sample, shade() and scatterEnd's next event estimation for the paths in scratch.quadPaths
-    // (their picks in scratch.quadPicks), in SIMD lanes (nee_lanes.h).
-    static void neeBatch(Path* paths, BatchScratch& scratch, RayCounters& counters);
+    // The light sample, shade() and scatterEnd for the paths in scratch.quadPaths (their picks in
+    // scratch.quadPicks; whether each goes on in scratch.quadMore), in SIMD lanes (scatter_lanes.h).
+    void scatterBatch(Path* paths, BatchScratch& scratch, RayCounters& counters) const;
     bool scatterEnd(Path& p, RayCounters& counters, std::vector<RecordedRay>* record) const;
     // scatterEnd's second half: the BSDF sample continues the path (throughput, Russian roulette).
     bool extend(Path& p, RayCounters& counters, std::vector<RecordedRay>* record) const;

@@ -1,4 +1,4 @@
-// Shared by the lanes kernels' tests (bsdf_lanes_test, nee_lanes_test): bitwise comparison and random unit
+// Shared by the lanes kernels' tests (bsdf_lanes_test, scatter_lanes_test): bitwise comparison and random unit
 // directions.
 #pragma once
 

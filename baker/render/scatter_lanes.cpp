@@ -1,8 +1,8 @@
-// TriangleLight::sampleAt, the candidate test of PathTracer::scatterBegin and the light half of scatterEnd
-// (shadowRay, spawnDistance, rayOffset, the power heuristic) over lanes, branch-free: every expression is the
+// TriangleLight::sampleAt, the candidate test of PathTracer::scatterBegin and scatterEnd (shadowRay,
+// spawnDistance, rayOffset, the power heuristic; extend's throughput and roulette) over lanes, branch-free: every expression is the
 // scalar code's, operand for operand (glm's dot is (x + y) + z), so the results are its bits; where the
 // scalar code returns early, the lanes compute on and select.
-#include "baker/render/nee_lanes.h"
+#include "baker/render/scatter_lanes.h"
 
 #include "baker/render/lane_math.h"
 
@@ -25,10 +25,10 @@ NRAD_LANE float rayOffset(float x, float y, float z) { return maxOf(maxOf(std::a
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(NRAD_NO_TARGET_CLONES)
 __attribute__((target_clones("avx512f", "avx2", "default")))
 #endif
-void neeLanes(NeeLanes& L, size_t n) {
+void scatterLanes(ScatterLanes& L, size_t n) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
-    float dist[NeeLanes::kLanes], pdf[NeeLanes::kLanes], LiR[NeeLanes::kLanes], LiG[NeeLanes::kLanes], LiB[NeeLanes::kLanes];
-    float nlx[NeeLanes::kLanes], nly[NeeLanes::kLanes], nlz[NeeLanes::kLanes], candidate[NeeLanes::kLanes];
+    float dist[ScatterLanes::kLanes], pdf[ScatterLanes::kLanes], LiR[ScatterLanes::kLanes], LiG[ScatterLanes::kLanes], LiB[ScatterLanes::kLanes];
+    float nlx[ScatterLanes::kLanes], nly[ScatterLanes::kLanes], nlz[ScatterLanes::kLanes], candidate[ScatterLanes::kLanes];
     BsdfLanes& B = L.bsdf;
     for (size_t k = 0; k < n; ++k) {
         // TriangleLight::sampleAt(p, pl) and the pick probability.
@@ -98,6 +98,35 @@ void neeLanes(NeeLanes& L, size_t n) {
         L.contribR[k] = L.betaR[k] * fr * LiR[k] * s;
         L.contribG[k] = L.betaG[k] * fg * LiG[k] * s;
         L.contribB[k] = L.betaB[k] * fb * LiB[k] * s;
+    }
+    for (size_t k = 0; k < n; ++k) {
+        // extend: a valid sample above the geometric surface; the throughput times f |cos| / pdf, neither black
+        // nor infinite; Russian roulette; the extension ray from the vertex.
+        const float ix = B.sampleX[k], iy = B.sampleY[k], iz = B.sampleZ[k], pdfS = B.samplePdf[k];
+        const float cs = std::abs(ix * B.nx[k] + iy * B.ny[k] + iz * B.nz[k]) / pdfS;
+        float r = L.betaR[k] * (B.sampleR[k] * cs), g = L.betaG[k] * (B.sampleG[k] * cs), b = L.betaB[k] * (B.sampleB[k] * cs);
+        const float above = ix * L.ngx[k] + iy * L.ngy[k] + iz * L.ngz[k];
+        float more = above > 0.0f ? 1.0f : 0.0f;
+        more = pdfS > 0.0f ? more : 0.0f;
+        float black = b <= 0.0f ? 1.0f : 0.0f;
+        black = g <= 0.0f ? black : 0.0f;
+        black = r <= 0.0f ? black : 0.0f;
+        more = black > 0.0f ? 0.0f : more;
+        more = finite(r) ? more : 0.0f;
+        more = finite(g) ? more : 0.0f;
+        more = finite(b) ? more : 0.0f;
+        const float q = minOf(1.0f, maxOf(r, maxOf(g, b)) / L.rouletteThreshold);
+        const float survives = L.uRoulette[k] >= q ? 0.0f : 1.0f;
+        const bool plays = L.roulette[k] > 0.0f;
+        more = plays ? (survives > 0.0f ? more : 0.0f) : more;
+        r = plays ? r / q : r;
+        g = plays ? g / q : g;
+        b = plays ? b / q : b;
+        L.more[k] = more;
+        L.betaR[k] = r, L.betaG[k] = g, L.betaB[k] = b;
+        const float cn = std::abs(above);
+        const float tnear = maxOf(L.margin[k], rayOffset(L.px[k], L.py[k], L.pz[k])) / cn;
+        L.extensionTnear[k] = cn > 0.0f ? tnear : kInf;
     }
 }
 

@@ -1,10 +1,10 @@
-// Next event estimation in lanes (nee_lanes.h) against the scalar code it reorganises: LightSampler::sample,
-// the candidate test, the Bsdf at the light direction and its sample, shadowRay and the power heuristic of
-// PathTracer::scatterEnd, the same bits in every output. Quad lights (one-sided: a two-sided pair of triangles
+// Scattering in lanes (scatter_lanes.h) against the scalar code it reorganises: LightSampler::sample, the
+// candidate test, the Bsdf at the light direction and its sample, shadowRay, the power heuristic, the
+// throughput and Russian roulette of PathTracer::scatterEnd, the same bits in every output. Quad lights (one-sided: a two-sided pair of triangles
 // is no parallelogram group) level, tilted, far from the origin and tiny; vertices in front of, behind and in
 // the plane of the light, at its corner, lit from below their geometric surface, black and glossy materials. Built twice: in render_tests with the
-// instruction-set clones this machine picks, in nee_lanes_plain_tests with the default alone.
-#include "baker/render/nee_lanes.h"
+// instruction-set clones this machine picks, in scatter_lanes_plain_tests with the default alone.
+#include "baker/render/scatter_lanes.h"
 
 #include <cstring>
 #include <limits>
@@ -55,7 +55,7 @@ float powerHeuristic(float f, float g) {  // path_tracer.cpp's
 
 bool isBlack(const glm::vec3& v) { return v.x <= 0.0f && v.y <= 0.0f && v.z <= 0.0f; }
 
-TEST(NeeLanes, AreTheScalarCodeBitForBit) {
+TEST(ScatterLanes, AreTheScalarCodeBitForBit) {
     struct Light {
         glm::vec3 c, e1, e2;
         float reach;  // how far from the light the vertices lie
@@ -68,15 +68,16 @@ TEST(NeeLanes, AreTheScalarCodeBitForBit) {
     };
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> u01(0.0f, 1.0f), s11(-1.0f, 1.0f);
-    NeeLanes lanes;
-    size_t checked = 0, pending = 0, notPending = 0;
+    ScatterLanes lanes;
+    size_t checked = 0, pending = 0, notPending = 0, more = 0, ended = 0, rouletteEnded = 0;
     for (const Light& lc : lightCases) {
         const Scene scene = quadLightScene(lc.c, lc.e1, lc.e2);
         const LightSampler lights(scene);
         ASSERT_TRUE(lights.groupIsParallelogram(0)) << "light " << (&lc - lightCases);
         const glm::vec3 centre = lc.c + 0.5f * (lc.e1 + lc.e2);
         for (int round = 0; round < 200; ++round) {
-            const size_t n = 1 + size_t(round) % NeeLanes::kLanes;
+            const size_t n = 1 + size_t(round) % ScatterLanes::kLanes;
+            lanes.rouletteThreshold = round % 2 == 0 ? 1.0f : 0.25f;
             std::vector<SurfaceInteraction> si(n);
             std::vector<glm::vec2> u(n);
             std::vector<glm::vec3> beta(n);
@@ -102,6 +103,8 @@ TEST(NeeLanes, AreTheScalarCodeBitForBit) {
                 if (k % 13 == 2) u[k] = glm::vec2(0.0f, 0.0f);
                 if (k % 13 == 9) u[k] = glm::vec2(0.5f, 0.5f);  // on the quad's diagonal
                 beta[k] = glm::vec3(u01(rng), u01(rng), u01(rng)) * 2.0f;
+                lanes.uRoulette[k] = u01(rng);
+                lanes.roulette[k] = k % 3 == 1 ? 0.0f : 1.0f;
                 LightSampler::QuadPick q;
                 ASSERT_TRUE(lights.pickQuad(u[k], q));
                 lanes.px[k] = v.p.x, lanes.py[k] = v.p.y, lanes.pz[k] = v.p.z;
@@ -122,7 +125,7 @@ TEST(NeeLanes, AreTheScalarCodeBitForBit) {
                 B.ior[k] = b.ior;
                 B.uLobe[k] = u01(rng), B.u0[k] = u01(rng), B.u1[k] = u01(rng);
             }
-            neeLanes(lanes, n);
+            scatterLanes(lanes, n);
             for (size_t k = 0; k < n; ++k) {
                 const SurfaceInteraction& v = si[k];
                 const LightSample ls = lights.sample(v.p, u[k]);
@@ -138,6 +141,30 @@ TEST(NeeLanes, AreTheScalarCodeBitForBit) {
                 if (candidate) {
                     f = bsdf.eval(out, ls.wi) * std::abs(glm::dot(ls.wi, v.ns));
                     bsdfPdf = bsdf.pdf(out, ls.wi);
+                }
+                // extend()
+                bool goesOn = bs.valid() && glm::dot(bs.wi, v.ng) > 0.0f, byRoulette = false;
+                glm::vec3 newBeta = beta[k];
+                if (goesOn) {
+                    newBeta *= bs.f * (std::abs(glm::dot(bs.wi, v.ns)) / bs.pdf);
+                    goesOn = !isBlack(newBeta) && std::isfinite(newBeta.x) && std::isfinite(newBeta.y) && std::isfinite(newBeta.z);
+                }
+                if (goesOn && lanes.roulette[k] > 0.0f) {
+                    const float q = std::min(1.0f, std::max(newBeta.x, std::max(newBeta.y, newBeta.z)) / lanes.rouletteThreshold);
+                    if (lanes.uRoulette[k] >= q)
+                        goesOn = false, byRoulette = true;
+                    else
+                        newBeta /= q;
+                }
+                ASSERT_EQ(lanes.more[k] > 0.0f, goesOn) << "light " << (&lc - lightCases) << ", round " << round << ", lane " << k;
+                if (goesOn) {
+                    ++more;
+                    ASSERT_TRUE(sameBits(lanes.betaR[k], newBeta.x) && sameBits(lanes.betaG[k], newBeta.y) &&
+                                sameBits(lanes.betaB[k], newBeta.z) && sameBits(lanes.extensionTnear[k], v.spawnDistance(bs.wi)))
+                        << "light " << (&lc - lightCases) << ", round " << round << ", lane " << k;
+                } else {
+                    ++ended;
+                    rouletteEnded += byRoulette;
                 }
                 const bool expectPending = candidate && !isBlack(f);
                 ASSERT_EQ(lanes.pending[k] > 0.0f, expectPending) << "light " << (&lc - lightCases) << ", round " << round << ", lane " << k;
@@ -163,9 +190,12 @@ TEST(NeeLanes, AreTheScalarCodeBitForBit) {
             }
         }
     }
-    // Both outcomes, many times each.
+    // Every outcome, many times each.
     EXPECT_GT(pending, checked / 5);
     EXPECT_GT(notPending, checked / 5);
+    EXPECT_GT(more, checked / 5);
+    EXPECT_GT(ended, checked / 10);
+    EXPECT_GT(rouletteEnded, checked / 50);
 }
 
 }  // namespace
