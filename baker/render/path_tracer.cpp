@@ -139,7 +139,8 @@ struct PathTracer::Path {
     RayQuery extension;
     NeeRecord neeRecord;
     // Between scatterBegin and scatterEnd: the vertex's sample points, its light sample, and what shade()
-    // computes of the BSDF (the light sample's value and pdf, the BSDF sample).
+    // computes of the BSDF (the light sample's value and pdf, the BSDF sample). A vertex scattered in lanes
+    // (scatterBatch) leaves ls, neeEval, neePdf and bs unwritten: the lanes turn them into what follows directly.
     int cutDepth = 0;  // the bounce at which scatteredRadiance cuts the path (0: never)
     glm::vec2 uBsdf{0.0f};
     float uLobe = 0.0f, uRoulette = 0.0f;
@@ -356,7 +357,7 @@ struct PathTracer::BatchScratch {
 };
 
 namespace {
-// Lane k of `L`: path p's vertex (the light direction is its caller's).
+// Lane k of `L`: the vertex si, its lobe choice and BSDF sample point (the light direction is the caller's).
 inline void packBsdf(BsdfLanes& L, size_t k, const SurfaceInteraction& si, float uLobe, const glm::vec2& uBsdf) {
     L.nx[k] = si.ns.x, L.ny[k] = si.ns.y, L.nz[k] = si.ns.z;
     L.wox[k] = si.wo.x, L.woy[k] = si.wo.y, L.woz[k] = si.wo.z;
