@@ -64,34 +64,42 @@ size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
 }
 }  // namespace
 
+const LightSampler::Group* LightSampler::pickEntry(glm::vec2& u, size_t& i) const {
+    i = pick(cdf_, u.x);
+    const Group& group = groups_[groupOfEntry_[i]];
+    if (!group.parallelogram || group.entries[1] != group.entries[0] + 1) return nullptr;
+    // The quad's two triangles are neighbours in the CDF: rescale the pick over both.
+    const size_t a = group.entries[0], b = group.entries[1];
+    const double lo = a > 0 ? cdf_[a - 1] : 0.0;
+    u.x = rescale(u.x, lo, cdf_[b] - lo);
+    return &group;
+}
+
+size_t LightSampler::quadPoint(const Group& group, const glm::vec2& u, glm::vec3& pl) const {
+    // Uniform by area over the whole quad with one 2D sample, so that stratified samples stay stratified
+    // over the quad: the same density as picking one of its two equal triangles and a point in it, so the
+    // pdfs (pdfTriangle, pdfTriangleInGroup) are those of the triangle the point lands in.
+    pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
+    return group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
+}
+
 LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (lights_.empty()) return LightSample{};
-    const size_t i = pick(cdf_, u.x);
-    const Group& group = groups_[groupOfEntry_[i]];
-    if (group.parallelogram && group.entries[1] == group.entries[0] + 1) {
-        // The quad's two triangles are neighbours in the CDF: rescale the pick over both and sample the quad.
-        size_t a = group.entries[0], b = group.entries[1];
-        double lo = a > 0 ? cdf_[a - 1] : 0.0;
-        u.x = rescale(u.x, lo, cdf_[b] - lo);
-        return sampleParallelogram(group, p, u, true);
-    }
+    size_t i;
+    if (const Group* quad = pickEntry(u, i)) return sampleParallelogram(*quad, p, u, true);
     u.x = remap(cdf_, i, u.x);
     return sampleEntry(i, pickProbability(i), p, u);
 }
 
 bool LightSampler::pickQuad(glm::vec2 u, QuadPick& out) const {
-    // sample() and sampleParallelogram() up to the call of sampleAt, operation for operation.
+    // sample() and sampleParallelogram() up to the call of sampleAt.
     if (lights_.empty()) return false;
-    const size_t i = pick(cdf_, u.x);
-    const Group& group = groups_[groupOfEntry_[i]];
-    if (!group.parallelogram || group.entries[1] != group.entries[0] + 1) return false;
-    const size_t a = group.entries[0], b = group.entries[1];
-    const double lo = a > 0 ? cdf_[a - 1] : 0.0;
-    u.x = rescale(u.x, lo, cdf_[b] - lo);
-    const size_t e = group.entries[u.x + u.y <= 1.0f ? 0 : 1];
+    size_t i;
+    const Group* quad = pickEntry(u, i);
+    if (!quad) return false;
+    const size_t e = quadPoint(*quad, u, out.point);
     const auto& light = static_cast<const TriangleLight&>(*lights_[e]);
     if (light.textured()) return false;
-    out.point = group.corner + u.x * group.edgeU + u.y * group.edgeV;
     out.normal = light.normal();
     out.front = light.frontRadiance();
     out.back = light.backRadiance();
@@ -103,12 +111,9 @@ bool LightSampler::pickQuad(glm::vec2 u, QuadPick& out) const {
 
 LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u,
                                               bool globalPick) const {
-    // Uniform by area over the whole quad with one 2D sample, so that stratified samples stay stratified
-    // over the quad: the same density as picking one of its two equal triangles and a point in it, so the
-    // pdfs (pdfTriangle, pdfTriangleInGroup) are those of the triangle the point lands in.
     const auto& P = scene_.mesh.positions;
-    glm::vec3 pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
-    size_t i = group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
+    glm::vec3 pl;
+    const size_t i = quadPoint(group, u, pl);
     const auto& light = static_cast<const TriangleLight&>(*lights_[i]);  // a parallelogram's entries are triangles
     float b1 = 0.0f, b2 = 0.0f;
     if (light.textured()) {

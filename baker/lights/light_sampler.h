@@ -124,6 +124,11 @@ private:
     LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
     const TriangleLight* triangleLight(size_t i) const;
     void detectParallelogram(Group& g, const std::vector<double>& power) const;
+    // sample()'s pick: entry i for u.x; where it belongs to a parallelogram whose two entries are neighbours,
+    // that group, with u.x rescaled over both (else nullptr, u unchanged).
+    const Group* pickEntry(glm::vec2& u, size_t& i) const;
+    // The point for u on parallelogram `group` and the entry (triangle) it lies in.
+    size_t quadPoint(const Group& group, const glm::vec2& u, glm::vec3& pl) const;
     // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
     LightSample sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
     const Scene& scene_;

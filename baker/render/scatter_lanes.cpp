@@ -15,6 +15,14 @@ namespace {
 
 using namespace lanes;
 
+// isBlack (path_tracer.cpp): 1 where no component is positive, else 0; one condition at a time (GCC vectorises
+// float selects, not nested or combined ones).
+NRAD_LANE float black(float r, float g, float b) {
+    float black = b <= 0.0f ? 1.0f : 0.0f;
+    black = g <= 0.0f ? black : 0.0f;
+    return r <= 0.0f ? black : 0.0f;
+}
+
 // rayOffset (accel.cpp)
 NRAD_LANE float rayOffset(float x, float y, float z) { return maxOf(maxOf(std::abs(x), maxOf(std::abs(y), std::abs(z))) * 4e-6f, 1e-30f); }
 
@@ -29,6 +37,7 @@ void scatterLanes(ScatterLanes& L, size_t n) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     float dist[ScatterLanes::kLanes], pdf[ScatterLanes::kLanes], LiR[ScatterLanes::kLanes], LiG[ScatterLanes::kLanes], LiB[ScatterLanes::kLanes];
     float nlx[ScatterLanes::kLanes], nly[ScatterLanes::kLanes], nlz[ScatterLanes::kLanes], candidate[ScatterLanes::kLanes];
+    float offsetP[ScatterLanes::kLanes];  // rayOffset of the vertex, for both rays' tnear
     BsdfLanes& B = L.bsdf;
     for (size_t k = 0; k < n; ++k) {
         // TriangleLight::sampleAt(p, pl) and the pick probability.
@@ -57,11 +66,7 @@ void scatterLanes(ScatterLanes& L, size_t n) {
         const float above = wx * L.ngx[k] + wy * L.ngy[k] + wz * L.ngz[k];
         float c = above > 0.0f ? 1.0f : 0.0f;
         c = q > 0.0f ? c : 0.0f;
-        // isBlack(Li), one condition at a time (GCC vectorises float selects, not nested or combined ones)
-        float black = b <= 0.0f ? 1.0f : 0.0f;
-        black = g <= 0.0f ? black : 0.0f;
-        black = r <= 0.0f ? black : 0.0f;
-        candidate[k] = black > 0.0f ? 0.0f : c;
+        candidate[k] = black(r, g, b) > 0.0f ? 0.0f : c;
         dist[k] = d, pdf[k] = q, LiR[k] = r, LiG[k] = g, LiB[k] = b;
         L.wix[k] = wx, L.wiy[k] = wy, L.wiz[k] = wz;
         // shadeBatch: the BSDF is evaluated at the light sample where it is a candidate, else at the normal.
@@ -75,12 +80,9 @@ void scatterLanes(ScatterLanes& L, size_t n) {
         // scatterEnd: f = neeEval * |dot(wi, ns)|, a shadow ray where f is not black.
         const float cosS = std::abs(wx * B.nx[k] + wy * B.ny[k] + wz * B.nz[k]);
         const float fr = B.evalR[k] * cosS, fg = B.evalG[k] * cosS, fb = B.evalB[k] * cosS;
-        float black = fb <= 0.0f ? 1.0f : 0.0f;
-        black = fg <= 0.0f ? black : 0.0f;
-        black = fr <= 0.0f ? black : 0.0f;
-        L.pending[k] = black > 0.0f ? 0.0f : candidate[k];
+        L.pending[k] = black(fr, fg, fb) > 0.0f ? 0.0f : candidate[k];
         // shadowRay: spawnDistance(wi) at the vertex, the light's end short of it by the larger margin.
-        const float offP = rayOffset(L.px[k], L.py[k], L.pz[k]);
+        const float offP = offsetP[k] = rayOffset(L.px[k], L.py[k], L.pz[k]);
         const float cn = std::abs(wx * L.ngx[k] + wy * L.ngy[k] + wz * L.ngz[k]);
         const float tnear = maxOf(L.margin[k], offP) / cn;
         L.tnear[k] = cn > 0.0f ? tnear : kInf;
@@ -108,10 +110,7 @@ void scatterLanes(ScatterLanes& L, size_t n) {
         const float above = ix * L.ngx[k] + iy * L.ngy[k] + iz * L.ngz[k];
         float more = above > 0.0f ? 1.0f : 0.0f;
         more = pdfS > 0.0f ? more : 0.0f;
-        float black = b <= 0.0f ? 1.0f : 0.0f;
-        black = g <= 0.0f ? black : 0.0f;
-        black = r <= 0.0f ? black : 0.0f;
-        more = black > 0.0f ? 0.0f : more;
+        more = black(r, g, b) > 0.0f ? 0.0f : more;
         more = finite(r) ? more : 0.0f;
         more = finite(g) ? more : 0.0f;
         more = finite(b) ? more : 0.0f;
@@ -125,7 +124,7 @@ void scatterLanes(ScatterLanes& L, size_t n) {
         L.more[k] = more;
         L.betaR[k] = r, L.betaG[k] = g, L.betaB[k] = b;
         const float cn = std::abs(above);
-        const float tnear = maxOf(L.margin[k], rayOffset(L.px[k], L.py[k], L.pz[k])) / cn;
+        const float tnear = maxOf(L.margin[k], offsetP[k]) / cn;
         L.extensionTnear[k] = cn > 0.0f ? tnear : kInf;
     }
 }
