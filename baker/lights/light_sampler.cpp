@@ -64,29 +64,26 @@ size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
 }
 }  // namespace
 
-const LightSampler::Group* LightSampler::pickEntry(glm::vec2& u, size_t& i) const {
+const LightSampler::Quad* LightSampler::pickEntry(glm::vec2& u, size_t& i) const {
     i = pick(cdf_, u.x);
-    const Group& group = groups_[groupOfEntry_[i]];
-    if (!group.parallelogram || group.entries[1] != group.entries[0] + 1) return nullptr;
-    // The quad's two triangles are neighbours in the CDF: rescale the pick over both.
-    const size_t a = group.entries[0], b = group.entries[1];
-    const double lo = a > 0 ? cdf_[a - 1] : 0.0;
-    u.x = rescale(u.x, lo, cdf_[b] - lo);
-    return &group;
+    const EntryQuad& eq = entryQuad_[i];
+    if (eq.quad < 0) return nullptr;
+    u.x = rescale(u.x, eq.lo, eq.width);
+    return &quads_[size_t(eq.quad)];
 }
 
-size_t LightSampler::quadPoint(const Group& group, const glm::vec2& u, glm::vec3& pl) const {
+int LightSampler::quadPoint(const Quad& quad, const glm::vec2& u, glm::vec3& pl) {
     // Uniform by area over the whole quad with one 2D sample, so that stratified samples stay stratified
     // over the quad: the same density as picking one of its two equal triangles and a point in it, so the
     // pdfs (pdfTriangle, pdfTriangleInGroup) are those of the triangle the point lands in.
-    pl = group.corner + u.x * group.edgeU + u.y * group.edgeV;
-    return group.entries[u.x + u.y <= 1.0f ? 0 : 1];  // the first triangle holds the corner
+    pl = quad.corner + u.x * quad.edgeU + u.y * quad.edgeV;
+    return u.x + u.y <= 1.0f ? 0 : 1;  // the first triangle holds the corner
 }
 
 LightSample LightSampler::sample(const glm::vec3& p, glm::vec2 u) const {
     if (lights_.empty()) return LightSample{};
     size_t i;
-    if (const Group* quad = pickEntry(u, i)) return sampleParallelogram(*quad, p, u, true);
+    if (const Quad* quad = pickEntry(u, i)) return sampleParallelogram(*quad, p, u, true);
     u.x = remap(cdf_, i, u.x);
     return sampleEntry(i, pickProbability(i), p, u);
 }
@@ -95,25 +92,21 @@ bool LightSampler::pickQuad(glm::vec2 u, QuadPick& out) const {
     // sample() and sampleParallelogram() up to the call of sampleAt.
     if (lights_.empty()) return false;
     size_t i;
-    const Group* quad = pickEntry(u, i);
+    const Quad* quad = pickEntry(u, i);
     if (!quad) return false;
-    const size_t e = quadPoint(*quad, u, out.point);
-    const auto& light = static_cast<const TriangleLight&>(*lights_[e]);
-    if (light.textured()) return false;
-    out.normal = light.normal();
-    out.front = light.frontRadiance();
-    out.back = light.backRadiance();
-    out.area = light.area();
-    out.margin = light.margin();
-    out.pick = pickProbability(e);
+    glm::vec3 point;
+    const int half = quadPoint(*quad, u, point);
+    if (quad->textured[half]) return false;
+    out = quad->halves[half];
+    out.point = point;
     return true;
 }
 
-LightSample LightSampler::sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u,
+LightSample LightSampler::sampleParallelogram(const Quad& quad, const glm::vec3& p, const glm::vec2& u,
                                               bool globalPick) const {
     const auto& P = scene_.mesh.positions;
     glm::vec3 pl;
-    const size_t i = quadPoint(group, u, pl);
+    const size_t i = quad.entries[quadPoint(quad, u, pl)];
     const auto& light = static_cast<const TriangleLight&>(*lights_[i]);  // a parallelogram's entries are triangles
     float b1 = 0.0f, b2 = 0.0f;
     if (light.textured()) {
@@ -137,7 +130,7 @@ const TriangleLight* LightSampler::triangleLight(size_t i) const {
 
 LightSample LightSampler::sampleGroup(size_t g, const glm::vec3& p, glm::vec2 u) const {
     const Group& group = groups_[g];
-    if (group.parallelogram) return sampleParallelogram(group, p, u, false);
+    if (group.parallelogram) return sampleParallelogram(quads_[group.quad], p, u, false);
     size_t k = pickAndRemap(group.cdf, u.x);
     size_t i = group.entries[k];
     return sampleEntry(i, pickInGroup_[i], p, u);
@@ -291,6 +284,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     // 3. Group data.
     groupOfEntry_.assign(n, 0);
     pickInGroup_.assign(n, 0.0f);
+    entryQuad_.assign(n, EntryQuad{});
     groups_.clear();
     for (const auto& cluster : clusters) {
         Group g;
@@ -339,7 +333,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     }
 }
 
-void LightSampler::detectParallelogram(Group& g, const std::vector<double>& power) const {
+void LightSampler::detectParallelogram(Group& g, const std::vector<double>& power) {
     // Two emissive triangles of one untextured material with equal power (so equal area), sharing an edge
     // (a, b), whose other corners c and d satisfy c + d = a + b.
     if (g.entries.size() != 2 || !g.planar) return;
@@ -367,10 +361,32 @@ void LightSampler::detectParallelogram(Group& g, const std::vector<double>& powe
                     &pd = mesh.positions[d];
     float size = glm::length(a - pc) + glm::length(b - pc);
     if (!(size > 0.0f) || !(glm::length(pc + pd - a - b) <= 1e-5f * size)) return;
+    Quad quad;
+    quad.corner = pc;
+    quad.edgeU = a - pc;
+    quad.edgeV = b - pc;  // the first entry's triangle is (c, a, b): u + v <= 1
+    for (int h = 0; h < 2; ++h) {
+        const uint32_t e = g.entries[size_t(h)];
+        const TriangleLight& light = *triangleLight(e);
+        quad.entries[h] = e;
+        quad.textured[h] = light.textured();
+        QuadPick& half = quad.halves[h];
+        half.normal = light.normal();
+        half.front = light.frontRadiance();
+        half.back = light.backRadiance();
+        half.area = light.area();
+        half.margin = light.margin();
+        half.pick = pickProbability(e);
+    }
     g.parallelogram = true;
-    g.corner = pc;
-    g.edgeU = a - pc;
-    g.edgeV = b - pc;  // the first entry's triangle is (c, a, b): u + v <= 1
+    g.quad = uint32_t(quads_.size());
+    quads_.push_back(quad);
+    // sample() picks the quad as one where its entries are neighbours in cdf_ (they are ascending).
+    if (quad.entries[1] == quad.entries[0] + 1) {
+        const size_t e0 = quad.entries[0], e1 = quad.entries[1];
+        const double lo = e0 > 0 ? cdf_[e0 - 1] : 0.0;
+        entryQuad_[e0] = entryQuad_[e1] = EntryQuad{int32_t(g.quad), lo, cdf_[e1] - lo};
+    }
 }
 
 }  // namespace nrad

@@ -115,22 +115,38 @@ private:
         bool unbounded = false;  // holds a directional light or the environment: may contribute anywhere
         bool planar = false;  // one-sided triangles that share one normal (`normal`)
         glm::vec3 normal{0.0f};
-        // Two triangles forming a parallelogram (a quad light): corner + u edgeU + v edgeV, u + v <= 1 in
-        // entries[0]; sampled as one quad (sample, sampleGroup).
+        // Two triangles forming a parallelogram (a quad light), sampled as one quad (sample, sampleGroup):
+        // quads_[quad].
         bool parallelogram = false;
+        uint32_t quad = 0;
+    };
+    // A parallelogram group's quad: corner + u edgeU + v edgeV, u + v <= 1 in entries[0], and per triangle
+    // (entries[0], entries[1]) what pickQuad gives of it, so that a pick reads one flat record instead of
+    // following the group's entries and the lights' pointers.
+    struct Quad {
         glm::vec3 corner{0.0f}, edgeU{0.0f}, edgeV{0.0f};
+        uint32_t entries[2] = {0, 0};
+        bool textured[2] = {false, false};
+        QuadPick halves[2];  // the point left unset
+    };
+    // Per entry of cdf_: the quad it is half of where sample() picks that quad as one (its two entries are
+    // neighbours in cdf_), with the quad's interval of cdf_ (from lo, `width` wide); else quad = -1.
+    struct EntryQuad {
+        int32_t quad = -1;
+        double lo = 0.0, width = 0.0;
     };
     // The sample of entry i (its own pdf times `pick`), with the entry recorded.
     LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
     const TriangleLight* triangleLight(size_t i) const;
-    void detectParallelogram(Group& g, const std::vector<double>& power) const;
-    // sample()'s pick: entry i for u.x; where it belongs to a parallelogram whose two entries are neighbours,
-    // that group, with u.x rescaled over both (else nullptr, u unchanged).
-    const Group* pickEntry(glm::vec2& u, size_t& i) const;
-    // The point for u on parallelogram `group` and the entry (triangle) it lies in.
-    size_t quadPoint(const Group& group, const glm::vec2& u, glm::vec3& pl) const;
+    // Where g's two triangles form a parallelogram: sets g.parallelogram and g.quad, adds the quad to quads_.
+    void detectParallelogram(Group& g, const std::vector<double>& power);
+    // sample()'s pick: entry i for u.x; where it is half of a quad that sample() picks as one (entryQuad_),
+    // that quad, with u.x rescaled over both halves (else nullptr, u unchanged).
+    const Quad* pickEntry(glm::vec2& u, size_t& i) const;
+    // The point for u on `quad` and which half (0, 1) it lies in.
+    static int quadPoint(const Quad& quad, const glm::vec2& u, glm::vec3& pl);
     // globalPick: the pdf includes the entry's probability in the whole list (sample()), else in its group.
-    LightSample sampleParallelogram(const Group& group, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
+    LightSample sampleParallelogram(const Quad& quad, const glm::vec3& p, const glm::vec2& u, bool globalPick) const;
     const Scene& scene_;
     EnvironmentSampler environment_;
     std::vector<std::unique_ptr<Light>> lights_;
@@ -143,6 +159,8 @@ private:
     std::vector<Group> groups_;
     std::vector<uint32_t> groupOfEntry_;
     std::vector<float> pickInGroup_;  // per entry: probability of the entry given its group
+    std::vector<Quad> quads_;  // of the parallelogram groups
+    std::vector<EntryQuad> entryQuad_;  // per entry
     float sceneRadius_ = 1.0f;
 };
 
