@@ -36,16 +36,24 @@ LightSampler::LightSampler(const Scene& scene) : scene_(scene), environment_(sce
 
 float LightSampler::pickProbability(size_t i) const { return pick_[i]; }
 
+size_t cdfInterval(const std::vector<double>& cdf, float u) {
+    const double x = double(u);
+    const double* base = cdf.data();
+    size_t n = cdf.size();
+    if (n == 0) return 0;
+    while (n > 1) {
+        const size_t half = n / 2;
+        base = x < base[half] ? base : base + half;  // as upper_bound compares (so NaN too)
+        n -= half;
+    }
+    const size_t i = size_t(base - cdf.data()) + (x < *base ? 0 : 1);
+    return std::min(i, cdf.size() - 1);
+}
+
 namespace {
 // u rescaled from [lo, lo + width) to [0, 1).
 float rescale(float u, double lo, double width) {
     return width > 0.0 ? float(std::clamp((double(u) - lo) / width, 0.0, double(0x1.fffffep-1f))) : 0.0f;
-}
-
-// The interval of `cdf` holding u.
-size_t pick(const std::vector<double>& cdf, float u) {
-    size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), double(u)) - cdf.begin());
-    return std::min(i, cdf.size() - 1);
 }
 
 // u rescaled within interval i of `cdf`.
@@ -53,19 +61,18 @@ float remap(const std::vector<double>& cdf, size_t i, float u) {
     double lo = i > 0 ? cdf[i - 1] : 0.0;
     return rescale(u, lo, cdf[i] - lo);
 }
-
 // Index of the interval of `cdf` (ascending, ending at 1) holding u, and u rescaled to [0, 1) within it: the
 // pick sample is reused as the first coordinate of the point on the light, so a stratified pick dimension
 // also stratifies the points within each light.
 size_t pickAndRemap(const std::vector<double>& cdf, float& u) {
-    size_t i = pick(cdf, u);
+    size_t i = cdfInterval(cdf, u);
     u = remap(cdf, i, u);
     return i;
 }
 }  // namespace
 
 const LightSampler::Quad* LightSampler::pickEntry(glm::vec2& u, size_t& i) const {
-    i = pick(cdf_, u.x);
+    i = cdfInterval(cdf_, u.x);
     const EntryQuad& eq = entryQuad_[i];
     if (eq.quad < 0) return nullptr;
     u.x = rescale(u.x, eq.lo, eq.width);

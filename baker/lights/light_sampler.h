@@ -21,6 +21,11 @@
 
 namespace nrad {
 
+// The interval of `cdf` (ascending) that u falls in: std::upper_bound's index (the first entry above u; NaN
+// compares as upper_bound compares it), at most the last. Found without branches: a light pick is a coin flip for
+// the branch predictor, which would mispredict about once per halving.
+size_t cdfInterval(const std::vector<double>& cdf, float u);
+
 class LightSampler {
 public:
     explicit LightSampler(const Scene& scene);

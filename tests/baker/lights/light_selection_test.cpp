@@ -1,8 +1,10 @@
 // Light selection for NEE (issue 6): light groups, the candidate test, the network's gradient against finite
 // differences, unbiasedness of learned selection against a uniform reference, learning visibility in the
 // split-rooms scene, and byte-identical results for one and two threads.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -22,6 +24,32 @@ namespace nrad {
 namespace {
 
 Scene splitRooms() { return loadGltf(test::sourcePath("scenes/split-rooms/split-rooms.gltf")); }
+
+// The branch-free pick against std::upper_bound (clamped to the last interval), on random CDFs with empty
+// intervals, at their exact steps, at 1 and at NaN.
+TEST(LightPick, CdfIntervalIsUpperBoundClamped) {
+    std::mt19937 rng(7);
+    size_t differing = 0, total = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+        std::vector<double> cdf(1 + rng() % 40);
+        double sum = 0.0;
+        for (double& c : cdf) c = sum += rng() % 4 == 0 ? 0.0 : double(rng() % 100);
+        for (double& c : cdf) c = sum > 0.0 ? c / sum : 1.0;
+        cdf.back() = 1.0;
+        std::vector<float> us = {std::nanf(""), 1.0f, 0.0f, -1.0f};
+        for (double c : cdf) us.push_back(float(c));
+        for (int k = 0; k < 64; ++k) us.push_back(float(rng() >> 8) * 0x1p-24f);
+        for (float u : us) {
+            const size_t expected = std::min(size_t(std::upper_bound(cdf.begin(), cdf.end(), double(u)) - cdf.begin()),
+                                             cdf.size() - 1);
+            differing += cdfInterval(cdf, u) != expected;
+            ++total;
+        }
+    }
+    EXPECT_EQ(differing, 0u) << "of " << total;
+    EXPECT_EQ(cdfInterval({0.25, 0.25, 1.0}, 0.25f), 2u);  // an empty interval is never picked
+    EXPECT_EQ(cdfInterval({0.25, 0.5, 1.0}, 0.2f), 0u);
+}
 
 TEST(LightGroups, QuadsAreOneLightEach) {
     Scene cornell = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
