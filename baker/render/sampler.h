@@ -94,7 +94,7 @@ public:
     uint32_t dimension() const { return dimension_; }
 
 private:
-    friend void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out);
+    friend struct SamplerState;  // next2D's (sampler.cpp)
     uint32_t stream_;
     uint32_t indexReversed_;
     uint32_t dimension_ = 0;
@@ -103,7 +103,11 @@ private:
 // `count` consecutive get2D() of each of samplers[0..n) at once, out[count k + j] the j-th of samplers[k]
 // (each advanced by `count` dimension pairs): the same bits as the calls, in loops the compiler vectorises
 // across samplers (the path tracer's batches draw their camera jitters and vertices' 2D points this way).
+// On x86-64 machines with AVX-512 and GFNI (Ice Lake, Zen 4 on) an AVX-512 kernel whose bit reversals are one
+// GFNI instruction each does it; elsewhere the compiler's vectorisation of the plain code (AVX2 / AVX-512 clones).
 void next2D(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out);
+// next2D without its GFNI kernel: what machines without GFNI run (for tests on machines that have it).
+void next2DWithoutGfni(Sampler* const* samplers, size_t n, uint32_t count, glm::vec2* out);
 
 // Stream id of a pixel for a given user seed.
 inline uint32_t pixelStream(uint32_t x, uint32_t y, uint32_t seed) {

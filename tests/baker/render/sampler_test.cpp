@@ -100,27 +100,30 @@ TEST(Sampler, ShortenedScrambleEqualsTheDefinition) {
 // The batched draw (SIMD lanes over samplers, a clone per instruction set on x86-64) against get2D calls,
 // one to three per sampler: the same bits for every batch size up to past two of its 64-sampler chunks,
 // samplers at different dimensions, and each advanced as the calls advance it.
+// next2D (the GFNI kernel where the CPU has it) and next2DWithoutGfni (the compiler-vectorised clones) alike.
 TEST(Sampler, BatchedDrawsAreTheCallsBitForBit) {
-    for (size_t n : {size_t(1), size_t(3), size_t(63), size_t(64), size_t(65), size_t(200)}) {
-        std::vector<Sampler> batched, single;
-        for (size_t k = 0; k < n; ++k) {
-            batched.emplace_back(hashU32(uint32_t(k) * 7u + 1u), uint32_t(k * 977u + (k << 20)));
-            for (size_t skip = 0; skip < k % 5; ++skip) batched.back().get2D();
-        }
-        single = batched;
-        std::vector<Sampler*> pointers;
-        for (Sampler& s : batched) pointers.push_back(&s);
-        std::vector<glm::vec2> out(3 * n);
-        for (int round = 0; round < 3; ++round) {
-            const uint32_t count = uint32_t(1 + (round + int(n)) % 3);
-            next2D(pointers.data(), n, count, out.data());
+    for (auto draw : {&next2D, &next2DWithoutGfni}) {
+        for (size_t n : {size_t(1), size_t(3), size_t(63), size_t(64), size_t(65), size_t(200)}) {
+            std::vector<Sampler> batched, single;
             for (size_t k = 0; k < n; ++k) {
-                for (uint32_t j = 0; j < count; ++j) {
-                    const glm::vec2 u = single[k].get2D();
-                    ASSERT_EQ(out[count * k + j].x, u.x) << "n " << n << ", sampler " << k << ", draw " << j;
-                    ASSERT_EQ(out[count * k + j].y, u.y) << "n " << n << ", sampler " << k << ", draw " << j;
+                batched.emplace_back(hashU32(uint32_t(k) * 7u + 1u), uint32_t(k * 977u + (k << 20)));
+                for (size_t skip = 0; skip < k % 5; ++skip) batched.back().get2D();
+            }
+            single = batched;
+            std::vector<Sampler*> pointers;
+            for (Sampler& s : batched) pointers.push_back(&s);
+            std::vector<glm::vec2> out(3 * n);
+            for (int round = 0; round < 3; ++round) {
+                const uint32_t count = uint32_t(1 + (round + int(n)) % 3);
+                draw(pointers.data(), n, count, out.data());
+                for (size_t k = 0; k < n; ++k) {
+                    for (uint32_t j = 0; j < count; ++j) {
+                        const glm::vec2 u = single[k].get2D();
+                        ASSERT_EQ(out[count * k + j].x, u.x) << "n " << n << ", sampler " << k << ", draw " << j;
+                        ASSERT_EQ(out[count * k + j].y, u.y) << "n " << n << ", sampler " << k << ", draw " << j;
+                    }
+                    ASSERT_EQ(batched[k].dimension(), single[k].dimension());
                 }
-                ASSERT_EQ(batched[k].dimension(), single[k].dimension());
             }
         }
     }
