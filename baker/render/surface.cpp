@@ -48,6 +48,13 @@ glm::vec3 normalMapped(const Scene& scene, const Material& m, const glm::uvec3& 
     return nl > 1e-6f && std::isfinite(nl) ? n / nl : N;
 }
 
+// Whether a triangle's three vertex normals are one and the same unit vector (a flat-shaded triangle, as most of
+// an architectural scene's are): then the interpolated shading normal is that vector exactly, whatever the
+// barycentrics. Unit within 1e-6 in squared length (half an ulp of 1 is 6e-8; normalising leaves about 1e-7).
+inline bool flatUnitNormal(const glm::vec3& n0, const glm::vec3& n1, const glm::vec3& n2) {
+    return n0 == n1 && n0 == n2 && std::abs(glm::dot(n0, n0) - 1.0f) < 1e-6f;
+}
+
 }  // namespace
 
 float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
@@ -112,9 +119,15 @@ void makeInteraction(const Scene& scene, const Hit& hit, const glm::vec3& direct
     si.p = b0 * mesh.positions[tri.x] + b1 * mesh.positions[tri.y] + b2 * mesh.positions[tri.z];
     si.wo = -direction;
     glm::vec3 ng = hit.margin >= 0.0f ? hit.ng : mesh.geometricNormal(hit.triangle);
-    glm::vec3 ns = b0 * mesh.normals[tri.x] + b1 * mesh.normals[tri.y] + b2 * mesh.normals[tri.z];
-    float nsLen = glm::length(ns);
-    ns = (nsLen > 1e-6f && std::isfinite(nsLen)) ? ns / nsLen : ng;
+    const glm::vec3 &n0 = mesh.normals[tri.x], &n1 = mesh.normals[tri.y], &n2 = mesh.normals[tri.z];
+    glm::vec3 ns;
+    if (flatUnitNormal(n0, n1, n2)) {
+        ns = n0;  // what interpolating and normalising computes, without its rounding (and its square root)
+    } else {
+        ns = b0 * n0 + b1 * n1 + b2 * n2;
+        float nsLen = glm::length(ns);
+        ns = (nsLen > 1e-6f && std::isfinite(nsLen)) ? ns / nsLen : ng;
+    }
     if (glm::dot(ns, ng) < 0.0f) ns = -ns;  // vertex normals on the winding side
     const Material& m = scene.materials[mesh.materialIds[hit.triangle]];
     ns = normalMapped(scene, m, tri, b0, b1, b2, ns);
