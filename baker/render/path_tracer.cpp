@@ -577,14 +577,18 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
         // The batched tracer's buffers, reused by the tiles of this range.
         std::vector<uint32_t> streams;
         std::vector<int> pixelX, pixelY;  // of the tile's pixels
-        std::vector<uint32_t> pixelOf;  // per path of a batch: its pixel in the tile
         std::vector<glm::dvec3> sums;
-        std::vector<Sampler> samplers;
+        // A batch's camera rays, traced (and their hits' texels asked for) one batch ahead of its paths, so that
+        // the memory system fetches a batch's texels while the previous batch's paths are traced.
+        struct CameraBatch {
+            std::vector<Sampler> samplers;
+            std::vector<uint32_t> pixelOf;  // per path: its pixel in the tile
+            std::vector<RayQuery> rays;
+            std::vector<Hit> hits;
+        } cameraBatches[2];
         std::vector<Sampler*> samplerOf;
         std::vector<glm::vec2> jitters;
         std::vector<float> rasterX, rasterY;
-        std::vector<RayQuery> cameraRays;
-        std::vector<Hit> cameraHits;
         std::vector<Path> paths;
         std::vector<uint32_t> pathOf;  // per camera ray: its path, or UINT32_MAX where it saw the sky
         std::vector<float> probs(probsPerPath * batch);
@@ -611,8 +615,8 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                         image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
                     }
             } else {
-                // The tile's samples in batches, sample by sample: each pixel's samples are summed in the same
-                // order as above.
+                // The tile's samples in batches, pixel by pixel: each pixel's samples are summed in the same order
+                // as above.
                 const int tw = x1 - x0;
                 const size_t pixels = size_t(tw) * size_t(y1 - y0);
                 streams.resize(pixels);
@@ -624,59 +628,67 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     pixelY[i] = y0 + int(i) / tw;
                     streams[i] = pixelStream(uint32_t(pixelX[i]), uint32_t(pixelY[i]), settings.seed);
                 }
-                // Path q is sample q / pixels of pixel q % pixels: batches run through the samples in order.
-                const size_t count = pixels * size_t(std::max(0, settings.spp));
-                for (size_t first = 0; first < count; first += batch) {
-                    const size_t m = std::min(batch, count - first);
-                    samplers.clear();
-                    cameraRays.resize(m);
-                    cameraHits.resize(m);
+                // Path q is sample q % spp of pixel q / spp: a pixel's samples are consecutive paths of a batch, so
+                // the texels one sample's lookups bring into the cache serve the pixel's other samples (whose
+                // camera rays land within its footprint); each pixel still sums its samples in their order.
+                const size_t spp = size_t(std::max(0, settings.spp)), count = pixels * spp;
+                // The camera rays of the batch of paths [first, first + m), traced, their hits' texels prefetched.
+                auto traceCameraRays = [&](CameraBatch& c, size_t first, size_t m) {
+                    c.samplers.clear();
+                    c.rays.resize(m);
+                    c.hits.resize(m);
+                    c.pixelOf.resize(m);
                     samplerOf.resize(m);
                     jitters.resize(m);
-                    pixelOf.resize(m);
                     // Each path's pixel and sample number, counted on from the batch's first path's.
-                    for (size_t k = 0, pixel = first % pixels, sample = first / pixels; k < m; ++k) {
-                        pixelOf[k] = uint32_t(pixel);
-                        samplers.emplace_back(streams[pixel], uint32_t(sample));
-                        if (++pixel == pixels) {
-                            pixel = 0;
-                            ++sample;
+                    for (size_t k = 0, pixel = first / spp, sample = first % spp; k < m; ++k) {
+                        c.pixelOf[k] = uint32_t(pixel);
+                        c.samplers.emplace_back(streams[pixel], uint32_t(sample));
+                        if (++sample == spp) {
+                            sample = 0;
+                            ++pixel;
                         }
                     }
-                    for (size_t k = 0; k < m; ++k) samplerOf[k] = &samplers[k];
+                    for (size_t k = 0; k < m; ++k) samplerOf[k] = &c.samplers[k];
                     next2D(samplerOf.data(), m, 1, jitters.data());
                     rasterX.resize(m);
                     rasterY.resize(m);
                     for (size_t k = 0; k < m; ++k) {
-                        rasterX[k] = float(pixelX[pixelOf[k]]) + jitters[k].x;
-                        rasterY[k] = float(pixelY[pixelOf[k]]) + jitters[k].y;
+                        rasterX[k] = float(pixelX[c.pixelOf[k]]) + jitters[k].x;
+                        rasterY[k] = float(pixelY[c.pixelOf[k]]) + jitters[k].y;
                     }
-                    rays.generate(rasterX.data(), rasterY.data(), m, cameraRays.data());
+                    rays.generate(rasterX.data(), rasterY.data(), m, c.rays.data());
                     counters.primary += m;
-                    accel_.intersect(cameraRays.data(), m, cameraHits.data(), settings.coherentCameraRays);
+                    accel_.intersect(c.rays.data(), m, c.hits.data(), settings.coherentCameraRays);
                     if (!scene_.textures.empty())
                         for (size_t k = 0; k < m; ++k)
-                            if (cameraHits[k].valid()) prefetchInteraction(scene_, cameraHits[k]);
+                            if (c.hits[k].valid()) prefetchInteraction(scene_, c.hits[k]);
+                };
+                if (count > 0) traceCameraRays(cameraBatches[0], 0, std::min(batch, count));
+                for (size_t first = 0, b = 0; first < count; first += batch, ++b) {
+                    const size_t m = std::min(batch, count - first);
+                    CameraBatch& c = cameraBatches[b & 1];
+                    if (first + batch < count) traceCameraRays(cameraBatches[(b + 1) & 1], first + batch, std::min(batch, count - first - batch));
                     paths.clear();
                     pathOf.resize(m);
                     for (size_t k = 0; k < m; ++k) {
-                        if (!cameraHits[k].valid()) {
+                        if (!c.hits[k].valid()) {
                             pathOf[k] = UINT32_MAX;
                             continue;
                         }
                         pathOf[k] = uint32_t(paths.size());
                         Path& p = paths.emplace_back();
-                        p.attach(&samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
-                        makeInteraction(scene_, cameraHits[k], cameraRays[k].direction, p.si);
+                        p.attach(&c.samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+                        makeInteraction(scene_, c.hits[k], c.rays[k].direction, p.si);
                     }
                     traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
                     for (size_t k = 0; k < m; ++k) {
                         // The sky (and suns' disks) where the camera ray left the scene.
                         const glm::vec3 L = pathOf[k] != UINT32_MAX ? paths[pathOf[k]].L
                                             : uniformSky                ? uniformSkyRadiance
-                                                                        : skyRadiance(scene_, cameraRays[k].direction);
+                                                                        : skyRadiance(scene_, c.rays[k].direction);
                         if (isFinite(L))
-                            sums[pixelOf[k]] += glm::dvec3(L);
+                            sums[c.pixelOf[k]] += glm::dvec3(L);
                         else
                             ++counters.nonFiniteSamples;
                     }
