@@ -682,16 +682,26 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                         makeInteraction(scene_, c.hits[k], c.rays[k].direction, p.si);
                     }
                     traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
+                    // A pixel's samples are a run of the batch: summed in a register, stored where the run ends
+                    // (the same additions in the same order as into sums[] one by one).
+                    uint32_t runPixel = c.pixelOf[0];
+                    glm::dvec3 run = sums[runPixel];
                     for (size_t k = 0; k < m; ++k) {
+                        if (c.pixelOf[k] != runPixel) {
+                            sums[runPixel] = run;
+                            runPixel = c.pixelOf[k];
+                            run = sums[runPixel];
+                        }
                         // The sky (and suns' disks) where the camera ray left the scene.
                         const glm::vec3 L = pathOf[k] != UINT32_MAX ? paths[pathOf[k]].L
                                             : uniformSky                ? uniformSkyRadiance
                                                                         : skyRadiance(scene_, c.rays[k].direction);
                         if (isFinite(L))
-                            sums[c.pixelOf[k]] += glm::dvec3(L);
+                            run += glm::dvec3(L);
                         else
                             ++counters.nonFiniteSamples;
                     }
+                    sums[runPixel] = run;
                 }
                 for (size_t i = 0; i < pixels; ++i)
                     image.at(pixelX[i], pixelY[i]) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
