@@ -160,6 +160,21 @@ struct PathTracer::Path {
         si = at;
         attach(s, probsBuffer);
     }
+    // start() for a path of a batch's buffer, without constructing it anew (a Path is 480 bytes): the state a path
+    // carries from vertex to vertex is reset; what a vertex writes before it reads it (its sample points, light
+    // and BSDF samples, rays and records) is left as the buffer's previous path left it. Its interaction is
+    // written after.
+    void restart(Sampler* s, float* probsBuffer) {
+        L = glm::vec3(0.0f);
+        beta = glm::vec3(1.0f);
+        prevBsdfPdf = 0.0f;
+        prevP = glm::vec3(0.0f);
+        depth = 0;
+        cutDepth = 0;
+        shadowPending = neePending = false;
+        probs = prevProbs = nullptr;
+        attach(s, probsBuffer);
+    }
     // start() for a path just constructed, its interaction written after.
     void attach(Sampler* s, float* probsBuffer) {
         sampler = s;
@@ -530,11 +545,12 @@ void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const
     for (size_t first = 0; first < n; first += kBatch) {
         const size_t m = std::min(kBatch, n - first);
         samplers.clear();
-        paths.resize(m);
+        if (paths.size() < m) paths.resize(m);
         for (size_t k = 0; k < m; ++k) {
             const PathStart& start = starts[first + k];
             samplers.emplace_back(start.stream, start.index);
-            paths[k].start(*start.si, &samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+            paths[k].restart(&samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+            paths[k].si = *start.si;
         }
         if (tail)
             traceBatch(paths.data(), m, 0, counters, scratch, std::max(1, bounces), tail);
@@ -669,19 +685,20 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     const size_t m = std::min(batch, count - first);
                     CameraBatch& c = cameraBatches[b & 1];
                     if (first + batch < count) traceCameraRays(cameraBatches[(b + 1) & 1], first + batch, std::min(batch, count - first - batch));
-                    paths.clear();
+                    if (paths.size() < m) paths.resize(m);  // constructed once, restarted by every batch
+                    size_t started = 0;
                     pathOf.resize(m);
                     for (size_t k = 0; k < m; ++k) {
                         if (!c.hits[k].valid()) {
                             pathOf[k] = UINT32_MAX;
                             continue;
                         }
-                        pathOf[k] = uint32_t(paths.size());
-                        Path& p = paths.emplace_back();
-                        p.attach(&c.samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
+                        pathOf[k] = uint32_t(started);
+                        Path& p = paths[started++];
+                        p.restart(&c.samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
                         makeInteraction(scene_, c.hits[k], c.rays[k].direction, p.si);
                     }
-                    traceBatch(paths.data(), paths.size(), settings.maxDepth, counters, scratch);
+                    traceBatch(paths.data(), started, settings.maxDepth, counters, scratch);
                     // A pixel's samples are a run of the batch: summed in a register, stored where the run ends
                     // (the same additions in the same order as into sums[] one by one).
                     uint32_t runPixel = c.pixelOf[0];
