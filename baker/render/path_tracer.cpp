@@ -685,6 +685,11 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                     const size_t m = std::min(batch, count - first);
                     CameraBatch& c = cameraBatches[b & 1];
                     if (first + batch < count) traceCameraRays(cameraBatches[(b + 1) & 1], first + batch, std::min(batch, count - first - batch));
+                    // The texels again, now: the requests made a batch ahead do not all survive the previous batch
+                    // (LightsPunctualLamp: 2-6% faster with both than with the early one alone).
+                    if (!scene_.textures.empty())
+                        for (size_t k = 0; k < m; ++k)
+                            if (c.hits[k].valid()) prefetchInteraction(scene_, c.hits[k]);
                     if (paths.size() < m) paths.resize(m);  // constructed once, restarted by every batch
                     size_t started = 0;
                     pathOf.resize(m);
