@@ -65,19 +65,25 @@ struct PlainPoints {
 
 // The same operations as PlainPoints, sixteen lanes per instruction.
 struct GfniPoints {
+    // The zero-masked forms of the shifts and shuffles: their plain forms pass an undefined vector through,
+    // which GCC 12's link-time optimisation reports as maybe uninitialised.
+    static constexpr __mmask16 kAll = __mmask16(0xffff);
+    static inline NRAD_GFNI_TARGET __m512i srl(__m512i v, unsigned n) { return _mm512_maskz_srli_epi32(kAll, v, n); }
+    static inline NRAD_GFNI_TARGET __m512i sll(__m512i v, unsigned n) { return _mm512_maskz_slli_epi32(kAll, v, n); }
     static inline NRAD_GFNI_TARGET __m512i reverse(__m512i v) {
         // Each byte's bits reversed (the affine transform by the anti-diagonal bit matrix), then each word's bytes.
         v = _mm512_gf2p8affine_epi64_epi8(v, _mm512_set1_epi64(0x8040201008040201ll), 0);
-        return _mm512_shuffle_epi8(v, _mm512_broadcast_i32x4(_mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12)));
+        const __m128i bytes = _mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12);
+        return _mm512_maskz_shuffle_epi8(~__mmask64(0), v, _mm512_maskz_broadcast_i32x4(kAll, bytes));
     }
     static inline NRAD_GFNI_TARGET __m512i mul(__m512i v, uint32_t c) { return _mm512_mullo_epi32(v, _mm512_set1_epi32(int(c))); }
     static inline NRAD_GFNI_TARGET __m512i add(__m512i v, uint32_t c) { return _mm512_add_epi32(v, _mm512_set1_epi32(int(c))); }
     static inline NRAD_GFNI_TARGET __m512i hash(__m512i v) {  // hashU32
-        v = _mm512_xor_si512(v, _mm512_srli_epi32(v, 16));
+        v = _mm512_xor_si512(v, srl(v, 16));
         v = mul(v, 0x7feb352du);
-        v = _mm512_xor_si512(v, _mm512_srli_epi32(v, 15));
+        v = _mm512_xor_si512(v, srl(v, 15));
         v = mul(v, 0x846ca68bu);
-        return _mm512_xor_si512(v, _mm512_srli_epi32(v, 16));
+        return _mm512_xor_si512(v, srl(v, 16));
     }
     static inline NRAD_GFNI_TARGET __m512i laineKarras(__m512i v, __m512i seed) {
         v = _mm512_add_epi32(v, seed);
@@ -87,11 +93,11 @@ struct GfniPoints {
         return _mm512_xor_si512(v, mul(v, 0x8d22f6e6u));
     }
     static inline NRAD_GFNI_TARGET __m512i sobol1(__m512i v) {  // sobolDim1Reversed
-        v = _mm512_xor_si512(v, _mm512_and_si512(_mm512_srli_epi32(v, 1), _mm512_set1_epi32(0x55555555)));
-        v = _mm512_xor_si512(v, _mm512_and_si512(_mm512_srli_epi32(v, 2), _mm512_set1_epi32(0x33333333)));
-        v = _mm512_xor_si512(v, _mm512_and_si512(_mm512_srli_epi32(v, 4), _mm512_set1_epi32(0x0f0f0f0f)));
-        v = _mm512_xor_si512(v, _mm512_and_si512(_mm512_srli_epi32(v, 8), _mm512_set1_epi32(0x00ff00ff)));
-        return _mm512_xor_si512(v, _mm512_and_si512(_mm512_srli_epi32(v, 16), _mm512_set1_epi32(0x0000ffff)));
+        v = _mm512_xor_si512(v, _mm512_and_si512(srl(v, 1), _mm512_set1_epi32(0x55555555)));
+        v = _mm512_xor_si512(v, _mm512_and_si512(srl(v, 2), _mm512_set1_epi32(0x33333333)));
+        v = _mm512_xor_si512(v, _mm512_and_si512(srl(v, 4), _mm512_set1_epi32(0x0f0f0f0f)));
+        v = _mm512_xor_si512(v, _mm512_and_si512(srl(v, 8), _mm512_set1_epi32(0x00ff00ff)));
+        return _mm512_xor_si512(v, _mm512_and_si512(srl(v, 16), _mm512_set1_epi32(0x0000ffff)));
     }
     // Not inlined into drawChunks (compiled for the baseline target): one call per chunk and draw.
     __attribute__((target("avx512f,avx512bw,gfni"))) void operator()(const uint32_t* stream, const uint32_t* indexReversed, const uint32_t* dimension,
@@ -102,7 +108,7 @@ struct GfniPoints {
             const __m512i d = add(_mm512_maskz_loadu_epi32(lanes, dimension + k), j);
             // hashCombine(s, d) = hashU32(s ^ (d + 0x9e3779b9 + (s << 6) + (s >> 2)))
             const __m512i seed = hash(_mm512_xor_si512(
-                s, _mm512_add_epi32(_mm512_add_epi32(add(d, 0x9e3779b9u), _mm512_slli_epi32(s, 6)), _mm512_srli_epi32(s, 2))));
+                s, _mm512_add_epi32(_mm512_add_epi32(add(d, 0x9e3779b9u), sll(s, 6)), srl(s, 2))));
             const __m512i i = reverse(laineKarras(_mm512_maskz_loadu_epi32(lanes, indexReversed + k), seed));
             const __m512i px = reverse(laineKarras(i, add(mul(seed, 0x9e3779b9u), 0x632be5abu)));
             const __m512i py = reverse(laineKarras(sobol1(i), add(mul(seed, 0x85ebca6bu), 0x2c1b3c6du)));
