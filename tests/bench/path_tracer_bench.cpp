@@ -8,7 +8,8 @@
 // 4. For reference, the same rays through Embree's streams as the batched tracer issues them.
 // Prints the rates and the tracer's ratio to each, for one thread and for all threads; best of several repetitions.
 //
-// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R] [--batch B] [--tracer-only]
+// Usage: path_tracer_bench [scene.gltf] [--width W] [--spp N] [--max-depth D] [--repeat R] [--batch B] [--tile T]
+//                          [--tracer-only]
 // (--tracer-only: render R times on one thread and print the tracer's rate alone, for a profiler.)
 // (--batch 1: the one-path tracer instead of the batched one)
 #include <algorithm>
@@ -115,6 +116,7 @@ int main(int argc, char** argv) {
         else if (a == "--max-depth") s.maxDepth = next();
         else if (a == "--repeat") repeat = std::max(1, next());
         else if (a == "--batch") s.batchSize = std::max(1, next());
+        else if (a == "--tile") s.tileSize = std::max(1, next());
         else if (a == "--tracer-only") tracerOnly = true;
         else scenePath = a;
     }
