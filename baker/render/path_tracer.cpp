@@ -7,6 +7,7 @@
 #include <mutex>
 #include <utility>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "baker/render/bsdf.h"
@@ -588,27 +589,46 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
     const size_t batch = size_t(std::max(1, settings.batchSize));
     const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
 
-    tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
-        RayCounters counters;
-        // The batched tracer's buffers, reused by the tiles of this range.
+    // The batched tracer's buffers: one set per worker thread for the whole render (every range is one tile, and
+    // buffers made per range were made, and their paths constructed, 64 times for a 128 x 128 image).
+    struct CameraBatch {
+        std::vector<Sampler> samplers;
+        std::vector<uint32_t> pixelOf;  // per path: its pixel in the tile
+        std::vector<RayQuery> rays;
+        std::vector<Hit> hits;
+    };
+    struct TileBuffers {
         std::vector<uint32_t> streams;
         std::vector<int> pixelX, pixelY;  // of the tile's pixels
         std::vector<glm::dvec3> sums;
         // A batch's camera rays, traced (and their hits' texels asked for) one batch ahead of its paths, so that
         // the memory system fetches a batch's texels while the previous batch's paths are traced.
-        struct CameraBatch {
-            std::vector<Sampler> samplers;
-            std::vector<uint32_t> pixelOf;  // per path: its pixel in the tile
-            std::vector<RayQuery> rays;
-            std::vector<Hit> hits;
-        } cameraBatches[2];
+        CameraBatch cameraBatches[2];
         std::vector<Sampler*> samplerOf;
         std::vector<glm::vec2> jitters;
         std::vector<float> rasterX, rasterY;
         std::vector<Path> paths;
         std::vector<uint32_t> pathOf;  // per camera ray: its path, or UINT32_MAX where it saw the sky
-        std::vector<float> probs(probsPerPath * batch);
+        std::vector<float> probs;
         BatchScratch scratch;
+    };
+    tbb::enumerable_thread_specific<TileBuffers> threadBuffers;
+
+    tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
+        RayCounters counters;
+        TileBuffers& buffers = threadBuffers.local();
+        std::vector<uint32_t>& streams = buffers.streams;
+        std::vector<int>&pixelX = buffers.pixelX, &pixelY = buffers.pixelY;
+        std::vector<glm::dvec3>& sums = buffers.sums;
+        CameraBatch* cameraBatches = buffers.cameraBatches;
+        std::vector<Sampler*>& samplerOf = buffers.samplerOf;
+        std::vector<glm::vec2>& jitters = buffers.jitters;
+        std::vector<float>&rasterX = buffers.rasterX, &rasterY = buffers.rasterY;
+        std::vector<Path>& paths = buffers.paths;
+        std::vector<uint32_t>& pathOf = buffers.pathOf;
+        std::vector<float>& probs = buffers.probs;
+        probs.resize(probsPerPath * batch);
+        BatchScratch& scratch = buffers.scratch;
         for (int tile = range.begin(); tile != range.end(); ++tile) {
             int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
             int x1 = std::min(x0 + ts, settings.width), y1 = std::min(y0 + ts, settings.height);
