@@ -233,8 +233,8 @@ PathTracer::Next PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDe
     // Next event estimation: the light sample (its BSDF terms come from shade()).
     p.recordHere = false;
     p.chosen = -1;
-    if (quad && !selector_ && !excludeEngineDrawn_ && si.bsdf.transmission == 0.0f && lights_.pickQuad(uLight, *quad))
-        return kQuadLanes;
+    // (A quad light is an area light, never one the engine draws: excludeEngineDrawn_ leaves its samples as they are.)
+    if (quad && !selector_ && si.bsdf.transmission == 0.0f && lights_.pickQuad(uLight, *quad)) return kQuadLanes;
     LightSample& ls = p.ls;
     ls = LightSample{};
     if (selector_ && lights_.groupCount() > 0) {

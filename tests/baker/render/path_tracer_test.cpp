@@ -184,6 +184,61 @@ TEST(PathTracer, BatchedImageIsTheOnePathImageBitForBit) {
     }
 }
 
+// Training estimates (PathTracer::estimate, in batches: the bakes' targets) against the one-path calls bit for
+// bit, as the baker's tracer has them: engine-drawn lights excluded (mixed lighting), the training roulette
+// threshold, Monte Carlo paths and integral targets cut after two bounces with a tail. The glossy box's quad
+// light goes through the scatter lanes, the engine-drawn point light (left out at the first vertex, added at the
+// cut) through the scalar path.
+TEST(PathTracer, BatchedEstimatesAreTheOnePathCallsBitForBit) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
+    PunctualLight bulb;
+    bulb.type = PunctualLight::Type::Point;
+    bulb.position = scene.bounds.center() + glm::vec3(0.1f, -0.2f, 0.15f) * (scene.bounds.upper - scene.bounds.lower);
+    bulb.intensity = glm::vec3(0.4f, 0.3f, 0.2f);
+    bulb.runtimeDirect = true;
+    scene.lights.push_back(bulb);
+    Accel accel(scene);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    tracer.setExcludeEngineDrawnDirect(true);
+    tracer.setRouletteThreshold(0.1f);
+    // Start points: where rays from the camera through a grid hit.
+    const Camera camera = scene.cameras.empty() ? frameBounds(scene.bounds) : scene.cameras[0];
+    CameraRays rays(camera, 12, 12);
+    std::vector<SurfaceInteraction> points;
+    for (int y = 0; y < 12; ++y)
+        for (int x = 0; x < 12; ++x) {
+            glm::vec3 o, d;
+            rays.generate(float(x) + 0.5f, float(y) + 0.5f, o, d);
+            const Hit hit = accel.intersect(o, d);
+            if (hit.valid()) points.push_back(makeInteraction(scene, hit, d));
+        }
+    ASSERT_GT(points.size(), 100u);
+    std::vector<PathStart> starts;
+    for (size_t k = 0; k < points.size(); ++k)
+        for (uint32_t j = 0; j < 5; ++j) starts.push_back({&points[k], hashU32(uint32_t(k) + 17u), j});
+    const ScatteredRadiance tail = [](const SurfaceInteraction& si) {
+        return glm::vec3(0.2f, 0.1f, 0.05f) * (1.5f + si.ns.y) + 0.01f * si.p;
+    };
+    for (bool integral : {false, true}) {
+        std::vector<glm::vec3> batched(starts.size());
+        RayCounters batchedRays, oneRays;
+        tracer.estimate(starts.data(), starts.size(), 0, integral ? &tail : nullptr, 2, batchedRays, batched.data());
+        double sum = 0.0;
+        for (size_t i = 0; i < starts.size(); ++i) {
+            Sampler sampler(starts[i].stream, starts[i].index);
+            const glm::vec3 one = integral ? tracer.scatteredRadiance(*starts[i].si, sampler, 2, tail, oneRays)
+                                           : tracer.outgoingRadiance(*starts[i].si, sampler, 0, oneRays);
+            ASSERT_EQ(std::memcmp(&batched[i], &one, sizeof(glm::vec3)), 0)
+                << (integral ? "integral" : "Monte Carlo") << ", path " << i;
+            sum += double(one.x + one.y + one.z);
+        }
+        EXPECT_GT(sum, 0.0);
+        EXPECT_EQ(batchedRays.extension, oneRays.extension);
+        EXPECT_EQ(batchedRays.shadow, oneRays.shadow);
+    }
+}
+
 TEST(PathTracer, ImageIsByteIdenticalForOneAndTwoThreads) {
     Scene scene = loadGltf(test::sourcePath("scenes/cornell-box-glossy/cornell-box-glossy.gltf"));
     RenderSettings s;
