@@ -538,11 +538,21 @@ void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const
                           RayCounters& counters, glm::vec3* out) const {
     constexpr size_t kBatch = size_t(kBatchSize);
     const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
-    std::vector<Sampler> samplers;
-    std::vector<Path> paths;
-    std::vector<float> probs(probsPerPath * std::min(n, kBatch));
-    BatchScratch scratch;
-    samplers.reserve(std::min(n, kBatch));
+    // The buffers of this thread, kept from call to call (bakes call this for every range of a few hundred paths);
+    // the paths point into `samplers`, which never grows past its reserve.
+    struct EstimateBuffers {
+        std::vector<Sampler> samplers;
+        std::vector<Path> paths;
+        std::vector<float> probs;
+        BatchScratch scratch;
+    };
+    static thread_local EstimateBuffers buffers;
+    std::vector<Sampler>& samplers = buffers.samplers;
+    std::vector<Path>& paths = buffers.paths;
+    std::vector<float>& probs = buffers.probs;
+    BatchScratch& scratch = buffers.scratch;
+    if (probs.size() < probsPerPath * std::min(n, kBatch)) probs.resize(probsPerPath * std::min(n, kBatch));
+    samplers.reserve(kBatch);
     for (size_t first = 0; first < n; first += kBatch) {
         const size_t m = std::min(kBatch, n - first);
         samplers.clear();
