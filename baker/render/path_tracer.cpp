@@ -718,8 +718,8 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
                 for (size_t first = 0, b = 0; first < count; first += batch, ++b) {
                     const size_t m = std::min(batch, count - first);
                     CameraBatch& c = cameraBatches[b & 1];
-                    if (first + batch < count)
-                        traceCameraRays(cameraBatches[(b + 1) & 1], first + batch, std::min(batch, count - first - batch));
+                    const size_t next = first + batch;
+                    if (next < count) traceCameraRays(cameraBatches[(b + 1) & 1], next, std::min(batch, count - next));
                     // The texels again, now: the requests made a batch ahead do not all survive the previous batch
                     // (LightsPunctualLamp: 1-4% faster with both than with the early one alone).
                     prefetchHits(c, m);

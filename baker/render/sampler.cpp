@@ -76,8 +76,12 @@ struct GfniPoints {
         const __m128i bytes = _mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12);
         return _mm512_maskz_shuffle_epi8(~__mmask64(0), v, _mm512_maskz_broadcast_i32x4(kAll, bytes));
     }
-    static inline NRAD_GFNI_TARGET __m512i mul(__m512i v, uint32_t c) { return _mm512_mullo_epi32(v, _mm512_set1_epi32(int(c))); }
-    static inline NRAD_GFNI_TARGET __m512i add(__m512i v, uint32_t c) { return _mm512_add_epi32(v, _mm512_set1_epi32(int(c))); }
+    static inline NRAD_GFNI_TARGET __m512i mul(__m512i v, uint32_t c) {
+        return _mm512_mullo_epi32(v, _mm512_set1_epi32(int(c)));
+    }
+    static inline NRAD_GFNI_TARGET __m512i add(__m512i v, uint32_t c) {
+        return _mm512_add_epi32(v, _mm512_set1_epi32(int(c)));
+    }
     static inline NRAD_GFNI_TARGET __m512i hash(__m512i v) {  // hashU32
         v = _mm512_xor_si512(v, srl(v, 16));
         v = mul(v, 0x7feb352du);
@@ -100,8 +104,10 @@ struct GfniPoints {
         return _mm512_xor_si512(v, _mm512_and_si512(srl(v, 16), _mm512_set1_epi32(0x0000ffff)));
     }
     // Not inlined into drawChunks (compiled for the baseline target): one call per chunk and draw.
-    __attribute__((target("avx512f,avx512bw,gfni"))) void operator()(const uint32_t* stream, const uint32_t* indexReversed, const uint32_t* dimension,
-                                     uint32_t j, size_t m, uint32_t* x, uint32_t* y) const {
+    __attribute__((target("avx512f,avx512bw,gfni"))) void operator()(const uint32_t* stream,
+                                                                     const uint32_t* indexReversed,
+                                                                     const uint32_t* dimension, uint32_t j, size_t m,
+                                                                     uint32_t* x, uint32_t* y) const {
         for (size_t k = 0; k < m; k += 16) {
             const __mmask16 lanes = m - k >= 16 ? __mmask16(0xffff) : __mmask16((1u << (m - k)) - 1u);
             const __m512i s = _mm512_maskz_loadu_epi32(lanes, stream + k);
@@ -123,7 +129,12 @@ __attribute__((target("avx512f,avx512bw,gfni"))) void next2DGfni(Sampler* const*
     drawChunks(samplers, n, count, out, GfniPoints{});
 }
 
-const bool kHasGfni = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("gfni");
+// Asked once, at load (a static initialiser may run before libgcc's own CPU detection: initialise it first).
+bool cpuHasGfniKernel() {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("gfni");
+}
+const bool kHasGfni = cpuHasGfniKernel();
 #endif
 
 // x86-64: a clone for AVX2 and one for AVX-512 (8 and 16 lanes with a 32-bit multiply; baseline SSE2 has none,
