@@ -22,8 +22,8 @@ for line in open(sys.argv[1]):
             e = seeds[len(seeds) // 2] if len(seeds) % 2 else 0.5 * (seeds[len(seeds) // 2 - 1] + seeds[len(seeds) // 2])
         rows.setdefault(scene, []).append((kind, tag, float(t), float(e)))
 
-names = {"CB": "Cornell box", "GB": "glossy Cornell box", "Z": "zdm2 (sky)"}
-colours = {"CB": "#1f77b4", "GB": "#d62728", "Z": "#2ca02c"}
+names = {"CB": "Cornell box", "GB": "glossy Cornell box", "Z": "zdm2 (sky)", "BB": "bright Cornell box"}
+colours = {"CB": "#1f77b4", "GB": "#d62728", "Z": "#2ca02c", "BB": "#9467bd"}
 
 
 def envelope(points):

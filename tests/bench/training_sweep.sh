@@ -11,7 +11,8 @@
 # Single bakes vary by seed (the glossy box by up to 40%, and one seed's network can fail): SEEDS="0 1 2" bakes
 # each setting with every seed and reports the median relMSE and the mean time (each seed's relMSE on the line).
 # Usage: [SEEDS="0 1 2"] [REFERENCE_SPP=4096] tests/bench/training_sweep.sh OUT_DIR [NRAD_BINARY] [SCENES]
-#   (about 15 minutes per seed on 2 cores, plus the references once)
+#   SCENES: any of CB GB Z (default) and BB (tests/bench/bright_box.py)
+#   (about 3 minutes per seed on 2 cores, plus the references once, 75 s each at 4,096 spp)
 set -u
 OUT=$1
 BIN=${2:-$(cd "$(dirname "$0")/../.." && pwd)/build/baker/nrad}
@@ -46,6 +47,8 @@ CB=$ROOT/scenes/cornell-box/cornell-box.gltf
 GB=$ROOT/scenes/cornell-box-glossy/cornell-box-glossy.gltf
 Z=$ROOT/../shared/scenes-external/Sauerbraten_zdm2/zdm2.glb
 ZV="--look-from -25,25,35 --look-at 10,-8,0 --fov 60"
+BB=$PWD/bright-box.gltf  # SCENES="BB": the Cornell box with bright walls (long paths), written here
+case " $SCENES " in *" BB "*) "$ROOT/tests/bench/bright_box.py" "$BB" ;; esac
 for scene in $SCENES; do
   view=""; [ $scene = Z ] && view=$ZV
   for pp in "10000 512" "2500 32" "5000 32" "10000 32" "20000 32" "40000 32" "10000 128" "20000 128" "40000 64"; do

@@ -185,10 +185,13 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     RunResult info = run("info '" + dir + "/a.nrad'");
     EXPECT_NE(info.output.find("\"method\":\"integral\""), std::string::npos) << info.output;
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 5);  // no temporary files
-    // The start's restarts: 1 for 2 rounds (not recorded), 4 by default from 32 rounds on, or as asked.
+    // The start's restarts: 1 for 2 rounds (not recorded), 4 by default from 32 rounds on, or as asked. The
+    // start's paths: unbounded unless told (Monte Carlo bakes cut them at 6 segments by default).
     EXPECT_EQ(info.output.find("start_restarts"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("\"max_depth\":0"), std::string::npos) << info.output;
     for (const auto& [flags, recorded] : {std::pair<std::string, std::string>{"--generations 32", "\"start_restarts\":4"},
-                                          {"--generations 2 --start-restarts 3", "\"start_restarts\":3"}}) {
+                                          {"--generations 2 --start-restarts 3", "\"start_restarts\":3"},
+                                          {"--generations 2 --max-depth 6", "\"max_depth\":6"}}) {
         const std::string path = dir + "/restarts.nrad";
         r = run("bake " + cornell() + " -o '" + path + "' --training integral --points 800 --generation-points 1000 " + flags + " -q");
         ASSERT_EQ(r.exitCode, 0) << flags << ": " << r.output;
