@@ -154,17 +154,11 @@ struct PathTracer::Path {
     float neePdf = 0.0f;
     BsdfSample bs;
 
-    // A path starting at si (none of it traced yet) with its sampler and, with a selector, its two buffers of
-    // kMaxLightGroups selection probabilities at probs.
-    void start(const SurfaceInteraction& at, Sampler* s, float* probsBuffer) {
-        *this = Path{};
-        si = at;
-        attach(s, probsBuffer);
-    }
-    // start() for a path of a batch's buffer, without constructing it anew (a Path is 480 bytes): the state a path
+    // A path about to start at the interaction written into si after this call (none of it traced yet), with its
+    // sampler and, with a selector, its two buffers of kMaxLightGroups selection probabilities at probsBuffer. A
+    // batch's buffer of paths is restarted rather than constructed anew (a Path is 480 bytes): the state a path
     // carries from vertex to vertex is reset; what a vertex writes before it reads it (its sample points, light
-    // and BSDF samples, rays and records) is left as the buffer's previous path left it. Its interaction is
-    // written after.
+    // and BSDF samples, rays and records) is left as the buffer's previous path left it.
     void restart(Sampler* s, float* probsBuffer) {
         L = glm::vec3(0.0f);
         beta = glm::vec3(1.0f);
@@ -173,16 +167,9 @@ struct PathTracer::Path {
         depth = 0;
         cutDepth = 0;
         shadowPending = neePending = false;
-        probs = prevProbs = nullptr;
-        attach(s, probsBuffer);
-    }
-    // start() for a path just constructed, its interaction written after.
-    void attach(Sampler* s, float* probsBuffer) {
         sampler = s;
-        if (probsBuffer) {
-            probs = probsBuffer;
-            prevProbs = probsBuffer + LightSampler::kMaxLightGroups;
-        }
+        probs = probsBuffer;
+        prevProbs = probsBuffer ? probsBuffer + LightSampler::kMaxLightGroups : nullptr;
     }
 };
 
@@ -338,7 +325,8 @@ glm::vec3 PathTracer::trace(SurfaceInteraction si, Sampler& sampler, int maxDept
                             const ScatteredRadiance* tail) const {
     float probs[2 * LightSampler::kMaxLightGroups];
     Path p;
-    p.start(si, &sampler, probs);
+    p.restart(&sampler, probs);
+    p.si = si;
     p.cutDepth = cutDepth;
     for (;;) {
         bool more = scatterBegin(p, nullptr, maxDepth, nee, tail) != kEnd;
