@@ -72,6 +72,7 @@ struct BakeOptions {
     IntegralSettings integral = defaults().integral;
     std::string generationLr;
     std::string saveGenerations;  // path prefix: integral training writes every round's asset there
+    ImportLimits importLimits;
 };
 
 bool parseGrid(const std::string& s, glm::uvec3& out) {
@@ -119,6 +120,10 @@ int usage(const std::string& what) {
     std::fprintf(stderr, "nrad bake: %s\n", what.c_str());
     return kExitUsage;
 }
+
+// Held-out relMSE above which the bake warns (a voxel's network against its own held-out samples; the bundled
+// boxes stay far below, a sunlit interior baked with its sun reads mean 27.9, worst 162).
+constexpr double kLargeHeldOutMean = 1.0, kLargeHeldOutWorst = 5.0;
 
 int runBake(BakeOptions o, CLI::App* cmd) {
     bool configEnvironment = false, configLighting = false, configPoints = false, configPaths = false;
@@ -286,10 +291,16 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.metadata = !o.noMetadata;
     s.train.demodulate = !o.noDemodulate;
 
+    {
+        std::vector<std::string> outputs = {o.output};
+        if (!o.stats.empty()) outputs.push_back(o.stats);
+        if (!o.saveGenerations.empty()) outputs.push_back(o.saveGenerations + "-g0.nrad");
+        if (int code = checkOutputsForCommand("bake", outputs)) return code;
+    }
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
-    if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene)) return code;
+    if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene, o.importLimits)) return code;
     std::string lightingJson;
     if (int code = applyLightingForCommand("bake", o.lighting, lightingFlagsGiven(cmd) || configLighting,
                                            cmd->count("--environment") > 0 || configEnvironment, o.quiet, scene, {}, &lightingJson))
@@ -346,6 +357,26 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                 (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.hiddenSamples,
                 (unsigned long long)r.sampleStats.droppedSamples, (unsigned long long)r.sampleStats.nonFinitePaths, meanErr, worstErr, worstVoxel, retrained, fallbacks,
                 loadSeconds, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, writeSeconds);
+
+    if (meanErr > kLargeHeldOutMean || worstErr > kLargeHeldOutWorst) {
+        // Networks this small smear sharp light; say what that likely is and what to do about it, rather than
+        // leave two large numbers in a long line.
+        size_t baked = 0;
+        bool sunBaked = false;
+        for (const PunctualLight& l : scene.lights)
+            if (!l.runtimeDirect) {
+                ++baked;
+                sunBaked = sunBaked || l.type == PunctualLight::Type::Directional;
+            }
+        const std::string cause = sunBaked ? "the sun's sharp direct light, baked into the asset"
+                                  : baked  ? std::to_string(baked) + " punctual light(s) whose sharp direct light is baked into the asset"
+                                           : "small or bright emitters whose sharp direct light is baked into the asset";
+        std::fprintf(stderr, "warning: large held-out error (relMSE mean %.3g, worst %.3g in %s %u; above %g or %g the asset "
+                             "visibly smears light): likely %s. Remedies: %s a finer partition (--budget larger, or --grid)\n",
+                     meanErr, worstErr, r.asset.tree.empty() ? "voxel" : "leaf", worstVoxel, kLargeHeldOutMean, kLargeHeldOutWorst,
+                     cause.c_str(), baked ? "--runtime-direct sun|all|NAME (the engine draws their direct light, the asset keeps the rest);"
+                                          : "");
+    }
 
     if (!r.generations.empty()) {
         const GenerationStats& last = r.generations.back();
@@ -500,6 +531,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
     cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
+    addImportOptions(cmd, o->importLimits);
     cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
     cmd->add_flag("--no-demodulate", o->noDemodulate,
                   "Networks learn the scattered radiance itself, not divided by the surface's reflectance");

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "baker/scene/gltf_loader.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
@@ -21,12 +22,15 @@ enum ExitCode : int {
 // Loads the scene for command `command`; on failure prints "nrad COMMAND: FILE: problem" and returns
 // kExitBadInput, else kExitOk. A scene without triangles is a failure too. Unless quiet, prints the import
 // summary and the importer's warnings on stderr.
-int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene);
+int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene, const ImportLimits& limits = {});
+// --max-texture-pixels and --max-triangles: what one scene may ask of the machine (ImportLimits).
+void addImportOptions(CLI::App* cmd, ImportLimits& limits);
 
-// The camera a command renders from: scene camera `index`, or (index < 0) the first, or a camera framing
-// the bounds if the scene has none. Prints "nrad COMMAND: --camera N: ..." and returns kExitUsage for an
-// index the scene does not have.
-int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera);
+// Every output a command will write, checked before any work (a typo in -o must cost a second, not a bake):
+// prints "nrad COMMAND: PATH: why" and returns kExitUsage for a file output that names a folder (or a folder
+// output that names a file), kExitIo for one that cannot be created, else kExitOk.
+int checkOutputsForCommand(const char* command, const std::vector<std::string>& files,
+                           const std::vector<std::string>& folders = {});
 
 // --look-from x,y,z --look-at x,y,z [--up x,y,z] [--fov DEG]: a perspective camera instead of the scene's; --fov
 // alone changes the chosen camera's vertical field of view.
@@ -35,6 +39,12 @@ struct ViewOptions {
     float fovDegrees = 0.0f;  // 0: keep
 };
 void addViewOptions(CLI::App* cmd, ViewOptions& o);
+
+// The camera a command renders from: --look-from/--look-at if given, else scene camera `index`, or (index < 0)
+// the first, or a camera framing the bounds if the scene has none; then --fov. Says which on stderr unless
+// quiet. Prints "nrad COMMAND: ..." and returns kExitUsage for an index the scene does not have or a bad view.
+int chooseCameraForCommand(const char* command, const Scene& scene, int index, const ViewOptions& view, bool quiet,
+                           Camera& camera);
 // Applies the view options to `camera` (after chooseCameraForCommand); kExitUsage with a message when bad.
 int applyViewForCommand(const char* command, const ViewOptions& o, Camera& camera);
 
@@ -70,6 +80,19 @@ int applyLightingForCommand(const char* command, const LightingOptions& o, bool 
 // stderr unless quiet).
 int checkAssetSceneForCommand(const char* command, const std::string& assetPath, const std::string& metadata,
                               const Scene& scene, bool force, bool quiet);
+
+// The image size from --width and --height (0: not given): both given, or one and the other from the camera's
+// aspect ratio, or the default width. kExitUsage (with a message) when a derived side would exceed 32768.
+int imageSizeForCommand(const char* command, int width, int height, float aspect, int defaultWidth, int& outWidth,
+                        int& outHeight);
+
+// kExitUsage with "nrad COMMAND: WHAT needs about N GiB; this process can allocate M GiB now" when `bytes` is more
+// than the process can allocate (availableMemoryBytes), else kExitOk.
+int checkMemoryForCommand(const char* command, uint64_t bytes, const std::string& what);
+
+// CLI::Range for a floating-point flag that also refuses nan and inf (CLI::Range lets NaN through: every
+// comparison with it is false, and `--exposure nan` wrote a black image).
+CLI::Validator finiteRange(double lo, double hi);
 
 // The comma-separated parts of s ("" gives one empty part).
 std::vector<std::string> splitCommas(const std::string& s);

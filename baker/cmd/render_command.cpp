@@ -23,6 +23,10 @@ namespace nrad {
 
 namespace {
 
+// Bytes a render holds per pixel at its peak (the float image, its 8-bit copy and the encoded PNG, the neural
+// path's G-buffer): measured as peak RSS over pixels at 4096 x 4096, rounded up (docs/usage.md).
+constexpr uint64_t kRenderBytesPerPixel = 48;
+
 struct RenderOptions {
     std::string scene;
     std::vector<std::string> outputs;
@@ -41,6 +45,7 @@ struct RenderOptions {
     uint32_t neeWarmup = NeeSettings{}.warmupSteps;
     int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
+    ImportLimits importLimits;
     LightingOptions lighting;
     ViewOptions view;
     bool force = false;
@@ -85,10 +90,15 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
             std::fprintf(stderr, "nrad render: %s: unsupported output type (use .exr or .png)\n", out.c_str());
             return kExitUsage;
         }
+    {
+        std::vector<std::string> outputs = o.outputs;
+        if (!o.chosenLight.empty()) outputs.push_back(o.chosenLight);
+        if (int code = checkOutputsForCommand("render", outputs)) return code;
+    }
     ThreadScope threads(o.threads);
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
-    if (int code = loadSceneForCommand("render", o.scene, o.quiet, scene)) return code;
+    if (int code = loadSceneForCommand("render", o.scene, o.quiet, scene, o.importLimits)) return code;
     nrad::Asset asset;
     std::string metadata;
     if (!o.asset.empty()) {
@@ -106,15 +116,17 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
     if (!o.asset.empty())
         if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
     Camera camera;
-    if (int code = chooseCameraForCommand("render", scene, o.camera, o.quiet, camera)) return code;
-    if (int code = applyViewForCommand("render", o.view, camera)) return code;
+    if (int code = chooseCameraForCommand("render", scene, o.camera, o.view, o.quiet, camera)) return code;
     RenderSettings settings;
     settings.spp = o.spp;
     settings.maxDepth = o.maxDepth;
     settings.seed = o.seed;
     float aspect = camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f;
-    settings.width = o.width > 0 ? o.width : (o.height > 0 ? std::max(1, int(std::lround(o.height * aspect))) : 512);
-    settings.height = o.height > 0 ? o.height : std::max(1, int(std::lround(settings.width / aspect)));
+    if (int code = imageSizeForCommand("render", o.width, o.height, aspect, 512, settings.width, settings.height)) return code;
+    // Refused up front with the figure, not after the scene is built: the image and its encoded copies.
+    if (int code = checkMemoryForCommand("render", uint64_t(settings.width) * uint64_t(settings.height) * kRenderBytesPerPixel,
+                                         "a " + std::to_string(settings.width) + " x " + std::to_string(settings.height) + " image"))
+        return code;
 
     Accel accel(scene);
     if (!o.chosenLight.empty() && !isSupportedImagePath(o.chosenLight)) {
@@ -195,7 +207,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--seed", opts->seed, "Seed of the quasi-random sequence");
     cmd->add_option("--threads", opts->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
-    cmd->add_option("--exposure", opts->exposure, "PNG exposure in stops")->check(CLI::Range(-64.0f, 64.0f));
+    cmd->add_option("--exposure", opts->exposure, "PNG exposure in stops")->check(finiteRange(-64.0, 64.0));
     cmd->add_option("--nee", opts->nee,
                     "Light selection for next event estimation: power (default), uniform, or learned (a network "
                     "trained while rendering; docs/lights.md)")
@@ -205,7 +217,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
             CLI::ignore_case));
     cmd->add_option("--nee-mix", opts->neeMix,
                     "Learned selection: share of the uniform choice among the lights that can contribute (default 0.05)")
-        ->check(CLI::Range(0.001f, 1.0f));
+        ->check(finiteRange(0.001, 1.0));
     cmd->add_option("--nee-warmup", opts->neeWarmup,
                     "Learned selection: training steps on camera paths traced before the image, which then renders "
                     "with the network fixed (default 1024); 0 = train throughout the render and keep every sample "
@@ -219,6 +231,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "Also write a false-colour image of the light chosen at each pixel's first hit (.png or .exr)");
     addLightingOptions(cmd, opts->lighting);
     addViewOptions(cmd, opts->view);
+    addImportOptions(cmd, opts->importLimits);
     cmd->add_flag("--force", opts->force, "--asset: use an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
     return [opts, cmd]() { return runRender(*opts, cmd); };

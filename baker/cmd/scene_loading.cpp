@@ -1,6 +1,7 @@
 // Scene loading shared by the commands: one message format and exit code for unusable scenes.
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -9,6 +10,8 @@
 #include "baker/bake/baker.h"
 #include "baker/cmd/commands.h"
 #include "baker/scene/gltf_loader.h"
+#include "baker/util/atomic_file.h"
+#include "baker/util/memory.h"
 
 namespace nrad {
 
@@ -26,9 +29,9 @@ void printImportSummary(const Scene& scene) {
 
 }  // namespace
 
-int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene) {
+int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene, const ImportLimits& limits) {
     try {
-        scene = loadGltf(path);
+        scene = loadGltf(path, limits);
     } catch (const SceneError& e) {
         std::fprintf(stderr, "nrad %s: %s\n", command, e.what());
         return kExitBadInput;
@@ -41,7 +44,30 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
     return kExitOk;
 }
 
-int chooseCameraForCommand(const char* command, const Scene& scene, int index, bool quiet, Camera& camera) {
+void addImportOptions(CLI::App* cmd, ImportLimits& limits) {
+    cmd->add_option("--max-texture-pixels", limits.maxTexturePixels,
+                    "Refuse a scene with an image of more pixels than this, read from its header before decoding "
+                    "(default 67108864 = 8192 x 8192)")
+        ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
+    cmd->add_option("--max-triangles", limits.maxTriangles,
+                    "Refuse a scene that flattens to more triangles than this, every mesh instance counted (default 50000000)")
+        ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31));
+}
+
+int checkOutputsForCommand(const char* command, const std::vector<std::string>& files, const std::vector<std::string>& folders) {
+    for (int folder = 0; folder < 2; ++folder)
+        for (const std::string& path : folder ? folders : files) {
+            const OutputCheck c = folder ? checkOutputFolder(path) : checkOutputFile(path);
+            if (c.problem == OutputProblem::kNone) continue;
+            std::fprintf(stderr, "nrad %s: %s\n", command, c.message.c_str());
+            return c.problem == OutputProblem::kCannotCreate ? kExitIo : kExitUsage;
+        }
+    return kExitOk;
+}
+
+int chooseCameraForCommand(const char* command, const Scene& scene, int index, const ViewOptions& view, bool quiet,
+                           Camera& camera) {
+    std::string said;
     if (index >= 0) {
         if (size_t(index) >= scene.cameras.size()) {
             std::fprintf(stderr, "nrad %s: --camera %d: %s has %zu camera(s)\n", command, index, scene.sourcePath.c_str(),
@@ -49,13 +75,57 @@ int chooseCameraForCommand(const char* command, const Scene& scene, int index, b
             return kExitUsage;
         }
         camera = scene.cameras[size_t(index)];
+        said = "the scene's camera " + std::to_string(index) + (camera.name.empty() ? "" : " (" + camera.name + ")");
     } else if (!scene.cameras.empty()) {
         camera = scene.cameras.front();
+        said = "the scene's camera 0" + (camera.name.empty() ? "" : " (" + camera.name + ")") + " of " +
+               std::to_string(scene.cameras.size()) + " (--camera N for another)";
     } else {
         camera = frameBounds(scene.bounds);
-        if (!quiet) std::fprintf(stderr, "camera: the scene has none; framing its bounds from +Z\n");
+        said = "the scene has none; framing its bounds from +Z, outside them (an interior shows its outer walls: "
+               "--look-from and --look-at place a camera inside)";
     }
+    // --look-from/--look-at replace the chosen camera (keeping its field of view): then only they are said
+    if (!view.lookFrom.empty() && !view.lookAt.empty()) said = "--look-from " + view.lookFrom + " --look-at " + view.lookAt;
+    if (int code = applyViewForCommand(command, view, camera)) return code;
+    if (!quiet) std::fprintf(stderr, "camera: %s\n", said.c_str());
     return kExitOk;
+}
+
+int imageSizeForCommand(const char* command, int width, int height, float aspect, int defaultWidth, int& outWidth,
+                        int& outHeight) {
+    constexpr double kMaxSide = 32768.0;
+    const double w = width > 0 ? width : height > 0 ? std::max(1.0, std::round(height * double(aspect))) : defaultWidth;
+    const double h = height > 0 ? height : std::max(1.0, std::round(w / double(aspect)));
+    if (!(w <= kMaxSide && h <= kMaxSide)) {
+        std::fprintf(stderr, "nrad %s: the camera's aspect ratio %g makes the image %.0f x %.0f, more than 32768 on a side; "
+                             "give both --width and --height\n", command, double(aspect), w, h);
+        return kExitUsage;
+    }
+    outWidth = int(w);
+    outHeight = int(h);
+    return kExitOk;
+}
+
+int checkMemoryForCommand(const char* command, uint64_t bytes, const std::string& what) {
+    const uint64_t available = availableMemoryBytes();
+    if (bytes <= available) return kExitOk;
+    std::fprintf(stderr, "nrad %s: %s needs about %s; this process can allocate %s now (free memory, container and ulimit): "
+                         "ask for less\n", command, what.c_str(), gibibytes(bytes).c_str(), gibibytes(available).c_str());
+    return kExitUsage;
+}
+
+CLI::Validator finiteRange(double lo, double hi) {
+    const std::string range = "[" + CLI::detail::to_string(lo) + " - " + CLI::detail::to_string(hi) + "]";
+    return CLI::Validator(
+        [lo, hi, range](std::string& text) -> std::string {
+            char* end = nullptr;
+            const double v = std::strtod(text.c_str(), &end);
+            if (end == text.c_str() || *end != '\0' || !std::isfinite(v)) return "Value " + text + " is not a finite number";
+            if (v < lo || v > hi) return "Value " + text + " not in range " + range;
+            return {};
+        },
+        "FLOAT in " + range);
 }
 
 std::vector<std::string> splitCommas(const std::string& s) {
@@ -70,7 +140,7 @@ void addViewOptions(CLI::App* cmd, ViewOptions& o) {
     cmd->add_option("--look-from", o.lookFrom, "Camera position x,y,z (with --look-at: overrides the scene's camera)");
     cmd->add_option("--look-at", o.lookAt, "Point the camera looks at, x,y,z");
     cmd->add_option("--up", o.up, "Up direction for --look-from/--look-at (default 0,1,0)");
-    cmd->add_option("--fov", o.fovDegrees, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.0f));
+    cmd->add_option("--fov", o.fovDegrees, "Vertical field of view in degrees")->check(finiteRange(0.01, 179.0));
 }
 
 namespace {
@@ -119,16 +189,16 @@ void addLightingOptions(CLI::App* cmd, LightingOptions& o) {
                     "Light from outside the scene: none, a constant sky radiance r,g,b, or an equirectangular HDR map "
                     "(.exr or .hdr). Default: the scene's own lights; a scene without any gets the default sky (1,1,1)");
     cmd->add_option("--environment-intensity", o.intensity, "Multiplies the environment (default 1)")
-        ->check(CLI::Range(0.0f, 1e30f));
+        ->check(finiteRange(0.0, 1e30));
     cmd->add_option("--environment-rotation", o.rotationDegrees,
                     "Rotates the environment map about +Y, degrees counter-clockwise seen from above (default 0)")
-        ->check(CLI::Range(-1e6f, 1e6f));
+        ->check(finiteRange(-1e6, 1e6));
     cmd->add_option("--sun", o.sun, "Adds a sun: x,y,z the direction towards it (world space, +Y up)");
     cmd->add_option("--sun-illuminance", o.sunIlluminance, "The sun's illuminance in lux (default 100000)")
-        ->check(CLI::Range(0.0f, 1e12f));
+        ->check(finiteRange(0.0, 1e12));
     cmd->add_option("--sun-angle", o.sunAngle,
                     "The sun's angular diameter in degrees for soft shadows (0.53 is the real sun's; default 0: sharp)")
-        ->check(CLI::Range(0.0f, 30.0f));
+        ->check(finiteRange(0.0, 30.0));
     cmd->add_option("--runtime-direct", o.runtimeDirect,
                     "Mixed lighting: lights whose direct light the engine draws at run time (the asset holds only their "
                     "indirect light): all (every punctual light and the sun), sun, or comma-separated light names or "
@@ -184,6 +254,9 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
             if (!quiet && scene.environment.active())
                 std::fprintf(stderr, "environment: %s\n", scene.environment.describe().c_str());
         }
+    } catch (const EnvironmentSpecError& e) {
+        std::fprintf(stderr, "nrad %s: %s\n", command, e.what());
+        return kExitUsage;
     } catch (const SceneError& e) {
         std::fprintf(stderr, "nrad %s: %s\n", command, e.what());
         return kExitBadInput;
@@ -256,6 +329,15 @@ int applyLightingForCommand(const char* command, const LightingOptions& options,
         if (!quiet)
             std::fprintf(stderr, "environment: %s has no light of its own: lit by the default sky (constant radiance 1; "
                                  "--environment none for none)\n", scene.sourcePath.c_str());
+    }
+    else if (!environmentGiven && !quiet && !fromAsset) {
+        // The default sky is off because the scene has light of its own: say so every time, with what that light
+        // is (a model lit only by an emissive texture, or a --sun, otherwise renders dark without a word).
+        size_t punctual = 0, sun = 0;
+        for (const PunctualLight& l : scene.lights) (l.name == "sun" && !o.sun.empty() ? sun : punctual) += 1;
+        std::fprintf(stderr, "lighting: %s's own light (%zu emissive triangles, %zu punctual lights%s), no environment; the "
+                             "default sky lights only scenes without light of their own (--environment 1,1,1 adds it)\n",
+                     scene.sourcePath.c_str(), scene.emissiveTriangleCount(), punctual, sun ? ", and the --sun" : "");
     }
     if (!scene.hasLight() && !quiet)
         std::fprintf(stderr, "warning: %s: nothing lights the scene (no emitter of positive power, no punctual light, no "

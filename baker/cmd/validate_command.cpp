@@ -19,6 +19,10 @@ namespace nrad {
 
 namespace {
 
+// Bytes a validation holds per pixel at its peak (reference, neural, baseline and curve images, their error
+// maps and encoded copies): measured as peak RSS over pixels at 2048 x 2048, rounded up (docs/usage.md).
+constexpr uint64_t kValidateBytesPerPixel = 200;
+
 struct ValidateOptions {
     std::string scene, asset, output, bakeStats, cacheDir, reference;
     int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 6, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
@@ -27,13 +31,15 @@ struct ValidateOptions {
     bool noCache = false, noBaseline = false, quiet = false, force = false;
     LightingOptions lighting;
     ViewOptions view;
+    ImportLimits importLimits;
 };
 
-// $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report.
+// $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report (not inside: the report folder
+// is replaced whole by the next validation).
 std::string defaultCacheDir(const std::string& output) {
     if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return (std::filesystem::path(x) / "nrad").string();
     if (const char* h = std::getenv("HOME"); h && *h) return (std::filesystem::path(h) / ".cache" / "nrad").string();
-    return (std::filesystem::path(output) / "cache").string();
+    return output + "-cache";
 }
 
 int runValidate(const ValidateOptions& o, CLI::App* cmd) {
@@ -47,9 +53,10 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             return kExitBadInput;
         }
     }
+    if (int code = checkOutputsForCommand("validate", {}, {o.output})) return code;
     ThreadScope threads(o.threads);
     Scene scene;
-    if (int code = loadSceneForCommand("validate", o.scene, o.quiet, scene)) return code;
+    if (int code = loadSceneForCommand("validate", o.scene, o.quiet, scene, o.importLimits)) return code;
     nrad::Asset asset;
     std::string message;
     if (asset.loadFromFile(o.asset.c_str(), &message) != NRAD_OK) {
@@ -72,10 +79,12 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         return kExitBadInput;
     }
     ValidateSettings s;
-    if (int code = chooseCameraForCommand("validate", scene, o.camera, o.quiet, s.camera)) return code;
-    if (int code = applyViewForCommand("validate", o.view, s.camera)) return code;
-    s.width = o.width;
-    s.height = o.height;
+    if (int code = chooseCameraForCommand("validate", scene, o.camera, o.view, o.quiet, s.camera)) return code;
+    const float aspect = s.camera.aspectRatio > 0.0f ? s.camera.aspectRatio : 1.0f;
+    if (int code = imageSizeForCommand("validate", o.width, o.height, aspect, 512, s.width, s.height)) return code;
+    if (int code = checkMemoryForCommand("validate", uint64_t(s.width) * uint64_t(s.height) * kValidateBytesPerPixel,
+                                         "validating at " + std::to_string(s.width) + " x " + std::to_string(s.height)))
+        return code;
     s.referenceSpp = o.referenceSpp;
     s.maxDepth = o.maxDepth;
     s.neuralSpp = o.neuralSpp;
@@ -135,9 +144,12 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             std::printf("\n");
         }
     }
-    std::printf("  path tracer at equal error: %.3g s%s = %.3gx the network evaluation, %.3gx the whole neural render\n",
-                r.neural.equalErrorSeconds, r.neural.equalErrorExtrapolated ? " (extrapolated)" : "", r.neural.speedupOverEvaluation,
-                r.neural.speedupOverRender);
+    if (referenceIsBlack(r))
+        std::printf("  path tracer at equal error: none: %s\n", kNoLightToCompare);
+    else
+        std::printf("  path tracer at equal error: %.3g s%s = %.3gx the network evaluation, %.3gx the whole neural render\n",
+                    r.neural.equalErrorSeconds, r.neural.equalErrorExtrapolated ? " (extrapolated)" : "",
+                    r.neural.speedupOverEvaluation, r.neural.speedupOverRender);
     if (bakeStats.is_object() && bakeStats.contains("seconds") && bakeStats["seconds"].is_object()) {
         double total = 0.0;
         for (auto& [k, v] : bakeStats["seconds"].items())
@@ -179,10 +191,11 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_option("--cache-dir", o->cacheDir, "Reference cache (default $XDG_CACHE_HOME/nrad or ~/.cache/nrad)");
     cmd->add_flag("--no-cache", o->noCache, "Neither read nor write the reference cache");
     cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
-    cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(CLI::Range(-64.0f, 64.0f));
+    cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(finiteRange(-64.0, 64.0));
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
     addLightingOptions(cmd, o->lighting);
     addViewOptions(cmd, o->view);
+    addImportOptions(cmd, o->importLimits);
     cmd->add_flag("--force", o->force, "Validate an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
     return [o, cmd]() { return runValidate(*o, cmd); };

@@ -79,10 +79,15 @@ void writePng(const std::string& path, const Image& image, float exposure) {
             v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
             rgb[3 * i + size_t(c)] = static_cast<unsigned char>(std::lround(linearToSrgb(v) * 255.0f));
         }
-    writeFileAtomically(path, [&](const std::string& tmp) {
-        if (!stbi_write_png(tmp.c_str(), image.width, image.height, 3, rgb.data(), image.width * 3))
-            throw IoError(path + ": cannot write PNG");
-    });
+    // Encoded in memory, written by writeBytesAtomically: a failed write then names the OS's reason.
+    std::vector<uint8_t> png;
+    auto append = [](void* context, void* data, int size) {
+        auto* out = static_cast<std::vector<uint8_t>*>(context);
+        out->insert(out->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
+    };
+    if (!stbi_write_png_to_func(append, &png, image.width, image.height, 3, rgb.data(), image.width * 3))
+        throw IoError(path + ": cannot encode PNG");
+    writeBytesAtomically(path, png);
 }
 
 bool isSupportedImagePath(const std::string& path) {

@@ -158,9 +158,9 @@ Environment defaultSky() {
 
 Environment parseEnvironment(const std::string& spec, float intensity, float rotationDegrees) {
     if (!std::isfinite(intensity) || intensity < 0.0f)
-        throw SceneError("--environment-intensity " + std::to_string(intensity) + ": expected a finite value >= 0");
+        throw EnvironmentSpecError("--environment-intensity " + std::to_string(intensity) + ": expected a finite value >= 0");
     if (!std::isfinite(rotationDegrees))
-        throw SceneError("--environment-rotation: expected a finite angle in degrees");
+        throw EnvironmentSpecError("--environment-rotation: expected a finite angle in degrees");
     Environment e;
     e.intensity = intensity;
     e.rotationDegrees = rotationDegrees;
@@ -171,7 +171,7 @@ Environment parseEnvironment(const std::string& spec, float intensity, float rot
     char rest;
     if (std::sscanf(spec.c_str(), "%f,%f,%f%c", &r, &g, &b, &rest) == 3) {
         if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
-            throw SceneError("--environment " + spec + ": expected three finite values >= 0 (r,g,b) or an .exr/.hdr file");
+            throw EnvironmentSpecError("--environment " + spec + ": expected three finite values >= 0 (r,g,b) or an .exr/.hdr file");
         e.kind = Environment::Kind::Constant;
         e.color = {r, g, b};
         return e;

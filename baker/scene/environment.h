@@ -10,6 +10,7 @@
 // from the texels draws exactly the function it is weighted by.
 #pragma once
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -45,8 +46,15 @@ struct Environment {
 Environment defaultSky();
 
 // Parses what `--environment` accepts: "none", "r,g,b" (radiance, finite, >= 0), or a path to an .exr or
-// .hdr equirectangular map (width = 2 x height is usual but not required). Throws SceneError naming the
-// file (or the value) and what is wrong. Non-finite or negative texels are an error, not clamped.
+// .hdr equirectangular map (width = 2 x height is usual but not required). Throws EnvironmentSpecError for a
+// bad value, SceneError naming the file and what is wrong with it. Non-finite or negative texels are an error,
+// not clamped.
+// Thrown by parseEnvironment for a flag value that is not an environment at all (r,g,b not finite and >= 0,
+// a non-finite intensity or angle): a usage error (exit 2), where a bad map file is a bad input (exit 3).
+class EnvironmentSpecError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
 Environment parseEnvironment(const std::string& spec, float intensity = 1.0f, float rotationDegrees = 0.0f);
 
 }  // namespace nrad

@@ -8,13 +8,19 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <limits>
 #include <set>
 #include <sstream>
+#include <string_view>
 
+#include <sys/stat.h>
+
+#include <draco/compression/decode.h>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <nlohmann/json.hpp>
+#include <stb_image.h>
 #include <tiny_gltf.h>
 
 namespace nrad {
@@ -31,6 +37,13 @@ const std::set<std::string>& supportedExtensions() {
     return s;
 }
 
+// An integer read from a JSON number a file gave: a value outside int's range (or not a number) becomes
+// `invalid`, never the undefined behaviour of converting it; the caller refuses it by its range check.
+int toInt(double v, int invalid) {
+    if (!(v >= double(std::numeric_limits<int>::min()) && v <= double(std::numeric_limits<int>::max()))) return invalid;
+    return int(v);
+}
+
 std::string trim(std::string s) {
     while (!s.empty() && (s.back() == '\n' || s.back() == ' ' || s.back() == '\r')) s.pop_back();
     return s;
@@ -38,8 +51,8 @@ std::string trim(std::string s) {
 
 class Importer {
 public:
-    Importer(const std::string& path, tinygltf::Model& model, Scene& scene)
-        : path_(path), model_(model), scene_(scene) {}
+    Importer(const std::string& path, tinygltf::Model& model, const ImportLimits& limits, Scene& scene)
+        : path_(path), model_(model), limits_(limits), scene_(scene) {}
 
     [[noreturn]] void fail(const std::string& what) const { throw SceneError(path_ + ": " + what); }
     void warn(const std::string& what) { scene_.stats.warnings.push_back(what); }
@@ -70,6 +83,7 @@ public:
             for (size_t i = 0; i < model_.nodes.size(); ++i)
                 if (!isChild[i]) roots.push_back(int(i));
         }
+        checkNodeGraph(roots);
         std::vector<int> stack;
         for (int r : roots) visitNode(r, glm::dmat4(1.0), stack);
 
@@ -125,7 +139,7 @@ private:
             !std::isfinite(ref.scale.y) || !std::isfinite(ref.rotation))
             fail(where + ": KHR_texture_transform has a non-finite value");
         if (t.Has("texCoord")) {
-            int tc = int(number(t, "texCoord", 0.0));
+            int tc = toInt(number(t, "texCoord", 0.0), -1);
             if (tc == 0 || tc == 1)
                 ref.texCoord = tc;
             else
@@ -160,8 +174,9 @@ private:
             tex.width = img.width;
             tex.height = img.height;
             int comp = img.component, bytes = img.bits / 8;
-            size_t need = size_t(img.width) * size_t(img.height) * size_t(comp) * size_t(bytes);
-            if (comp < 1 || comp > 4 || (bytes != 1 && bytes != 2) || img.image.size() < need)
+            if (comp < 1 || comp > 4 || (bytes != 1 && bytes != 2) ||
+                uint64_t(img.width) * uint64_t(img.height) > limits_.maxTexturePixels ||
+                img.image.size() / (size_t(comp) * size_t(bytes)) / size_t(img.width) < size_t(img.height))
                 fail("image " + std::to_string(t.source) + " has an unsupported pixel layout");
             const size_t count = size_t(img.width) * size_t(img.height);
             if (bytes == 1) {
@@ -269,7 +284,8 @@ private:
                 m.transmission = float(number(tr->second, "transmissionFactor", 0.0));
                 if (tr->second.Has("transmissionTexture")) {
                     const tinygltf::Value& t = tr->second.Get("transmissionTexture");
-                    int index = int(number(t, "index", -1.0)), texCoord = int(number(t, "texCoord", 0.0));
+                    int index = toInt(number(t, "index", -1.0), std::numeric_limits<int>::max());
+                    int texCoord = toInt(number(t, "texCoord", 0.0), -1);
                     tinygltf::ExtensionMap ext;
                     if (t.Has("extensions") && t.Get("extensions").Has("KHR_texture_transform"))
                         ext["KHR_texture_transform"] = t.Get("extensions").Get("KHR_texture_transform");
@@ -339,6 +355,37 @@ private:
 
     // ----- nodes -----
 
+    // glTF's node hierarchy is a set of disjoint trees: a node has at most one parent, and a scene's roots are
+    // nobody's children, each listed once. A file that breaks this describes a graph whose flattening can
+    // grow as 2^depth (a node listed twice as a child, 30 levels deep: 2^29 instances), so it is refused here,
+    // before anything is instanced.
+    void checkNodeGraph(const std::vector<int>& roots) const {
+        const size_t count = model_.nodes.size();
+        std::vector<int> parent(count, -1);
+        for (size_t i = 0; i < count; ++i)
+            for (int c : model_.nodes[i].children) {
+                if (c < 0 || size_t(c) >= count)
+                    fail("node " + std::to_string(i) + " lists child " + std::to_string(c) + ", which does not exist (there are " +
+                         std::to_string(count) + " nodes)");
+                if (size_t(c) == i) fail("node " + std::to_string(i) + " is its own child (cycle in the node hierarchy)");
+                if (parent[size_t(c)] >= 0)
+                    fail("node " + std::to_string(c) + " has two parents (it is a child of nodes " +
+                         std::to_string(parent[size_t(c)]) + " and " + std::to_string(i) +
+                         "); glTF node hierarchies must be trees");
+                parent[size_t(c)] = int(i);
+            }
+        std::vector<bool> isRoot(count, false);
+        for (int r : roots) {
+            if (r < 0 || size_t(r) >= count)
+                fail("node " + std::to_string(r) + " does not exist (there are " + std::to_string(count) + ")");
+            if (isRoot[size_t(r)]) fail("the scene lists node " + std::to_string(r) + " twice");
+            if (parent[size_t(r)] >= 0)
+                fail("node " + std::to_string(r) + " is a root of the scene and a child of node " +
+                     std::to_string(parent[size_t(r)]) + "; glTF node hierarchies must be trees");
+            isRoot[size_t(r)] = true;
+        }
+    }
+
     static glm::dmat4 localTransform(const tinygltf::Node& n) {
         if (n.matrix.size() == 16) return glm::make_mat4(n.matrix.data());
         glm::dmat4 m(1.0);
@@ -369,7 +416,8 @@ private:
         if (node.camera >= 0) addCamera(node.camera, world);
         auto lp = node.extensions.find("KHR_lights_punctual");
         if (lp != node.extensions.end() && lp->second.Has("light"))
-            addLightInstance(lp->second.Get("light").GetNumberAsInt(), world);
+            addLightInstance(lp->second.Get("light").IsNumber() ? toInt(lp->second.Get("light").GetNumberAsDouble(), -1) : -1,
+                             world);
         for (int child : node.children) visitNode(child, world, stack);
         stack.pop_back();
     }
@@ -407,6 +455,98 @@ private:
         return model_.accessors[size_t(index)];
     }
 
+    // A normalized integer as glTF defines it (KHR_mesh_quantization): signed ones clamped at -1.
+    static double normalizedValue(int componentType, double v) {
+        switch (componentType) {
+            case TINYGLTF_COMPONENT_TYPE_BYTE: return std::max(v / 127.0, -1.0);
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return v / 255.0;
+            case TINYGLTF_COMPONENT_TYPE_SHORT: return std::max(v / 32767.0, -1.0);
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return v / 65535.0;
+            default: return v;
+        }
+    }
+
+    // ----- KHR_draco_mesh_compression -----
+    // Decoded here rather than by tinygltf, whose Draco path indexes buffers, views and attributes from the file
+    // unchecked (a Draco primitive with no buffer was a null reference; an attribute id the stream lacks, a null
+    // pointer; more than four components, a stack overflow).
+
+    static const tinygltf::Value* dracoExtension(const tinygltf::Primitive& prim) {
+        auto it = prim.extensions.find("KHR_draco_mesh_compression");
+        return it == prim.extensions.end() ? nullptr : &it->second;
+    }
+
+    const draco::Mesh& dracoMesh(const tinygltf::Value& ext, const std::string& where) {
+        const tinygltf::Value& bv = ext.Get("bufferView");
+        const int viewIndex = bv.IsNumber() ? toInt(bv.GetNumberAsDouble(), -1) : -1;
+        if (viewIndex < 0 || size_t(viewIndex) >= model_.bufferViews.size())
+            fail(where + ": KHR_draco_mesh_compression refers to a bufferView that does not exist");
+        auto cached = dracoMeshes_.find(viewIndex);
+        if (cached != dracoMeshes_.end()) return *cached->second;
+        const tinygltf::BufferView& view = model_.bufferViews[size_t(viewIndex)];
+        if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
+            fail(where + ": KHR_draco_mesh_compression's bufferView " + std::to_string(viewIndex) + " refers to a missing buffer");
+        const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
+        if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+            fail(where + ": KHR_draco_mesh_compression's bufferView " + std::to_string(viewIndex) + " lies outside its buffer");
+        draco::DecoderBuffer buffer;
+        buffer.Init(reinterpret_cast<const char*>(data.data() + view.byteOffset), view.byteLength);
+        draco::Decoder decoder;
+        auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+        if (!decoded.ok()) fail(where + ": its Draco data cannot be decoded (" + decoded.status().error_msg_string() + ")");
+        std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+        if (!mesh) fail(where + ": its Draco data holds no mesh");
+        return *(dracoMeshes_[viewIndex] = std::move(mesh));
+    }
+
+    // A vertex attribute, `components` per element: from the Draco stream when the primitive's extension names
+    // it, else from its accessor.
+    std::vector<double> readAttribute(const tinygltf::Primitive& prim, const std::string& attribute, int components,
+                                      const std::string& where) {
+        const int index = prim.attributes.at(attribute);
+        const tinygltf::Value* ext = dracoExtension(prim);
+        if (!ext || !ext->Get("attributes").IsObject() || !ext->Get("attributes").Has(attribute))
+            return readAccessor(index, components, where + " " + attribute);
+        const std::string name = where + " " + attribute + " (Draco)";
+        const tinygltf::Accessor& acc = accessor(index, name);
+        if (tinygltf::GetNumComponentsInType(uint32_t(acc.type)) != components)
+            fail(name + ": accessor " + std::to_string(index) + " has " + std::to_string(tinygltf::GetNumComponentsInType(uint32_t(acc.type))) +
+                 " components per element, expected " + std::to_string(components));
+        const tinygltf::Value& id = ext->Get("attributes").Get(attribute);
+        const draco::Mesh& mesh = dracoMesh(*ext, where);
+        const draco::PointAttribute* a =
+            id.IsNumber() && id.GetNumberAsDouble() >= 0.0 && id.GetNumberAsDouble() <= 4294967295.0
+                ? mesh.GetAttributeByUniqueId(uint32_t(id.GetNumberAsDouble()))
+                : nullptr;
+        if (!a) fail(name + ": the Draco stream has no attribute of that id");
+        if (a->num_components() != components)
+            fail(name + ": the Draco attribute has " + std::to_string(int(a->num_components())) + " components, expected " +
+                 std::to_string(components));
+        std::vector<double> out(size_t(mesh.num_points()) * size_t(components));
+        double value[4];
+        for (draco::PointIndex i(0); i < mesh.num_points(); ++i) {
+            if (!a->ConvertValue<double>(a->mapped_index(i), int8_t(components), value))
+                fail(name + ": a Draco value cannot be read");
+            for (int k = 0; k < components; ++k)
+                out[size_t(i.value()) * size_t(components) + size_t(k)] =
+                    acc.normalized ? normalizedValue(acc.componentType, value[k]) : value[k];
+        }
+        return out;
+    }
+
+    // The primitive's vertex indices, from the Draco stream's faces or the indices accessor (nothing checked
+    // against the vertex count here).
+    std::vector<double> readIndices(const tinygltf::Primitive& prim, const std::string& where) {
+        const tinygltf::Value* ext = dracoExtension(prim);
+        if (!ext) return readAccessor(prim.indices, 1, where + " indices");
+        const draco::Mesh& mesh = dracoMesh(*ext, where);
+        std::vector<double> out;
+        out.reserve(size_t(mesh.num_faces()) * 3);
+        for (draco::FaceIndex f(0); f < mesh.num_faces(); ++f)
+            for (int k = 0; k < 3; ++k) out.push_back(double(mesh.face(f)[k].value()));
+        return out;
+    }
+
     // Reads an accessor into doubles, `components` per element, checking every byte range.
     std::vector<double> readAccessor(int index, int components, const std::string& where) const {
         const tinygltf::Accessor& acc = accessor(index, where);
@@ -418,22 +558,29 @@ private:
         int csize = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
         if (csize <= 0) fail(name + " has an invalid component type");
         if (acc.bufferView < 0 || size_t(acc.bufferView) >= model_.bufferViews.size())
-            fail(name + " has no valid bufferView" + (scene_.stats.dracoPrimitives ? " (Draco decoding failed?)" : ""));
+            fail(name + " has no valid bufferView");
         const tinygltf::BufferView& view = model_.bufferViews[size_t(acc.bufferView)];
         if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
             fail(name + ": bufferView " + std::to_string(acc.bufferView) + " refers to a missing buffer");
         const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
-        size_t elemSize = size_t(csize) * size_t(n);
-        size_t stride = view.byteStride ? view.byteStride : elemSize;
+        // Every size below comes from the file: each sum and product is checked, so a count of 3^-1 mod 2^64 or
+        // an offset of 2^64 - 8 cannot wrap into a range that passes.
+        const size_t elemSize = size_t(csize) * size_t(n);
+        const size_t stride = view.byteStride ? view.byteStride : elemSize;
         if (stride < elemSize) fail(name + ": byteStride smaller than the element size");
-        size_t begin = view.byteOffset + acc.byteOffset;
+        if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+            fail(name + ": bufferView " + std::to_string(acc.bufferView) + " (offset " + std::to_string(view.byteOffset) +
+                 ", length " + std::to_string(view.byteLength) + ") lies outside its buffer of " +
+                 std::to_string(data.size()) + " bytes");
         if (acc.count > 0) {
-            size_t lastEnd = begin + stride * (acc.count - 1) + elemSize;
-            if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset ||
-                acc.byteOffset + stride * (acc.count - 1) + elemSize > view.byteLength || lastEnd > data.size())
-                fail(name + " reads past the end of its buffer (count " + std::to_string(acc.count) +
-                     ", buffer has " + std::to_string(data.size()) + " bytes)");
+            size_t span = 0;  // stride * (count - 1) + elemSize: the bytes the accessor reads
+            if (__builtin_mul_overflow(stride, acc.count - 1, &span) || __builtin_add_overflow(span, elemSize, &span) ||
+                acc.byteOffset > view.byteLength || span > view.byteLength - acc.byteOffset)
+                fail(name + " reads past the end of its buffer (count " + std::to_string(acc.count) + ", byteOffset " +
+                     std::to_string(acc.byteOffset) + ", stride " + std::to_string(stride) + "; the bufferView has " +
+                     std::to_string(view.byteLength) + " bytes)");
         }
+        const size_t begin = view.byteOffset + acc.byteOffset;  // within data: checked above
         std::vector<double> out(acc.count * size_t(n));
         for (size_t i = 0; i < acc.count; ++i) {
             const unsigned char* e = data.data() + begin + i * stride;
@@ -443,15 +590,15 @@ private:
                 switch (acc.componentType) {
                     case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
                     case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); v = d; break; }
-                    case TINYGLTF_COMPONENT_TYPE_BYTE: { int8_t x; std::memcpy(&x, p, 1); v = acc.normalized ? std::max(x / 127.0, -1.0) : x; break; }
-                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: { uint8_t x = *p; v = acc.normalized ? x / 255.0 : x; break; }
-                    case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t x; std::memcpy(&x, p, 2); v = acc.normalized ? std::max(x / 32767.0, -1.0) : x; break; }
-                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t x; std::memcpy(&x, p, 2); v = acc.normalized ? x / 65535.0 : x; break; }
+                    case TINYGLTF_COMPONENT_TYPE_BYTE: { int8_t x; std::memcpy(&x, p, 1); v = x; break; }
+                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: { uint8_t x = *p; v = x; break; }
+                    case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t x; std::memcpy(&x, p, 2); v = x; break; }
+                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t x; std::memcpy(&x, p, 2); v = x; break; }
                     case TINYGLTF_COMPONENT_TYPE_INT: { int32_t x; std::memcpy(&x, p, 4); v = x; break; }
                     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t x; std::memcpy(&x, p, 4); v = x; break; }
                     default: fail(name + " has an unsupported component type");
                 }
-                out[i * size_t(n) + size_t(k)] = v;
+                out[i * size_t(n) + size_t(k)] = acc.normalized ? normalizedValue(acc.componentType, v) : v;
             }
         }
         return out;
@@ -486,19 +633,19 @@ private:
             ++scene_.stats.primitivesSkipped;
             return;
         }
-        std::vector<double> pos = readAccessor(posIndex, 3, where + " POSITION");
+        std::vector<double> pos = readAttribute(prim, "POSITION", 3, where);
         size_t vertexCount = pos.size() / 3;
         std::vector<double> nrm, uv0, uv1;
         if (attr("NORMAL") >= 0) {
-            nrm = readAccessor(attr("NORMAL"), 3, where + " NORMAL");
+            nrm = readAttribute(prim, "NORMAL", 3, where);
             if (nrm.size() != pos.size()) fail(where + ": NORMAL and POSITION counts differ");
         }
         if (attr("TEXCOORD_0") >= 0) {
-            uv0 = readAccessor(attr("TEXCOORD_0"), 2, where + " TEXCOORD_0");
+            uv0 = readAttribute(prim, "TEXCOORD_0", 2, where);
             if (uv0.size() / 2 != vertexCount) fail(where + ": TEXCOORD_0 and POSITION counts differ");
         }
         if (attr("TEXCOORD_1") >= 0) {
-            uv1 = readAccessor(attr("TEXCOORD_1"), 2, where + " TEXCOORD_1");
+            uv1 = readAttribute(prim, "TEXCOORD_1", 2, where);
             if (uv1.size() / 2 != vertexCount) fail(where + ": TEXCOORD_1 and POSITION counts differ");
         }
 
@@ -507,7 +654,7 @@ private:
         if (attr("COLOR_0") >= 0) {
             colComponents = tinygltf::GetNumComponentsInType(uint32_t(accessor(attr("COLOR_0"), where + " COLOR_0").type));
             if (colComponents != 3 && colComponents != 4) fail(where + ": COLOR_0 must be VEC3 or VEC4");
-            col = readAccessor(attr("COLOR_0"), colComponents, where + " COLOR_0");
+            col = readAttribute(prim, "COLOR_0", colComponents, where);
             if (col.size() / size_t(colComponents) != vertexCount) fail(where + ": COLOR_0 and POSITION counts differ");
             for (double c : col)
                 if (!std::isfinite(c)) fail(where + ": COLOR_0 has a non-finite value");
@@ -516,19 +663,21 @@ private:
         const Material& mat = scene_.materials[material];
         const bool normalMapped = mat.normalTexture.valid();
         if (normalMapped && attr("TANGENT") >= 0) {
-            tan = readAccessor(attr("TANGENT"), 4, where + " TANGENT");
+            tan = readAttribute(prim, "TANGENT", 4, where);
             if (tan.size() / 4 != vertexCount) fail(where + ": TANGENT and POSITION counts differ");
         }
 
         // Vertex indices of the primitive's triangles.
         std::vector<uint32_t> idx;
-        if (prim.indices >= 0) {
-            const tinygltf::Accessor& ia = accessor(prim.indices, where + " indices");
-            if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-                ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-                ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-                fail(where + ": indices must be unsigned byte, short or int");
-            std::vector<double> raw = readAccessor(prim.indices, 1, where + " indices");
+        if (prim.indices >= 0 || dracoExtension(prim)) {
+            if (prim.indices >= 0) {
+                const tinygltf::Accessor& ia = accessor(prim.indices, where + " indices");
+                if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+                    ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+                    ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+                    fail(where + ": indices must be unsigned byte, short or int");
+            }
+            std::vector<double> raw = readIndices(prim, where);
             idx.reserve(raw.size());
             for (size_t i = 0; i < raw.size(); ++i) {
                 if (raw[i] >= double(vertexCount))
@@ -551,6 +700,14 @@ private:
             for (size_t i = 1; i + 1 < idx.size(); ++i) tris.emplace_back(idx[i], idx[i + 1], idx[0]);
         }
         scene_.stats.trianglesRead += tris.size();
+        // The flattened scene's size, bounded before anything is emitted (the vertex indices are 32-bit).
+        const uint64_t maxVertices = std::min<uint64_t>(3 * limits_.maxTriangles, std::numeric_limits<uint32_t>::max());
+        const uint64_t vertices = uint64_t(scene_.mesh.positions.size()) + (nrm.empty() ? 3 * uint64_t(tris.size()) : vertexCount);
+        if (scene_.stats.trianglesRead > limits_.maxTriangles || vertices > maxVertices)
+            fail(where + ": the flattened scene exceeds " + std::to_string(limits_.maxTriangles) + " triangles (" +
+                 std::to_string(scene_.stats.trianglesRead) + " so far, " + std::to_string(scene_.stats.meshInstances) +
+                 " mesh instances) or " + std::to_string(maxVertices) + " vertices (" + std::to_string(vertices) +
+                 "); raise --max-triangles if the machine has the memory");
 
         // Transform to world space (positions in double, then float).
         glm::dmat3 normalFromObject = glm::transpose(glm::inverse(glm::dmat3(world)));
@@ -682,84 +839,162 @@ private:
 
     std::string path_;
     tinygltf::Model& model_;
+    const ImportLimits& limits_;
     Scene& scene_;
     std::map<std::pair<int, bool>, int> textureCache_;
+    std::map<int, std::unique_ptr<draco::Mesh>> dracoMeshes_;  // by bufferView
     int defaultMaterial_ = -1;
 };
 
-bool hasGlbMagic(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    char magic[4] = {};
-    f.read(magic, 4);
-    return f.gcount() == 4 && std::memcmp(magic, "glTF", 4) == 0;
-}
+bool hasGlbMagic(const std::vector<uint8_t>& bytes) { return bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0; }
 
-// tinygltf decodes Draco while parsing and indexes bufferViews and accessors from the extension without
-// bounds checks; check those indices in the JSON first so a hostile file cannot reach that code.
-void checkDracoIndices(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    std::string text;
-    if (bytes.size() >= 20 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
-        uint32_t chunkLength = 0, chunkType = 0;
-        std::memcpy(&chunkLength, bytes.data() + 12, 4);
-        std::memcpy(&chunkType, bytes.data() + 16, 4);
-        if (chunkType != 0x4E4F534Au || chunkLength > bytes.size() - 20) return;  // tinygltf reports it
-        text = bytes.substr(20, chunkLength);
-    } else {
-        text = std::move(bytes);
-    }
-    nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
-    if (doc.is_discarded() || !doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return;
-    auto count = [&](const char* key) { return doc.contains(key) && doc[key].is_array() ? doc[key].size() : size_t(0); };
-    const size_t views = count("bufferViews"), accessors = count("accessors");
-    auto validIndex = [](const nlohmann::json& v, size_t n) { return v.is_number_integer() && v.get<int64_t>() >= 0 && size_t(v.get<int64_t>()) < n; };
-    for (size_t m = 0; m < doc["meshes"].size(); ++m) {
-        const nlohmann::json& mesh = doc["meshes"][m];
-        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
-        for (size_t p = 0; p < mesh["primitives"].size(); ++p) {
-            const nlohmann::json& prim = mesh["primitives"][p];
-            if (!prim.is_object() || !prim.contains("extensions") || !prim["extensions"].is_object() ||
-                !prim["extensions"].contains("KHR_draco_mesh_compression"))
-                continue;
-            const std::string where = path + ": mesh " + std::to_string(m) + " primitive " + std::to_string(p) + ": ";
-            const nlohmann::json& draco = prim["extensions"]["KHR_draco_mesh_compression"];
-            if (!draco.is_object() || !draco.contains("bufferView") || !validIndex(draco["bufferView"], views))
-                throw SceneError(where + "KHR_draco_mesh_compression refers to a bufferView that does not exist");
-            if (prim.contains("indices") && !validIndex(prim["indices"], accessors))
-                throw SceneError(where + "indices refer to an accessor that does not exist");
-            if (!prim.contains("attributes") || !prim["attributes"].is_object())
-                throw SceneError(where + "has no attributes");
-            for (auto& [name, index] : prim["attributes"].items())
-                if (!validIndex(index, accessors))
-                    throw SceneError(where + "attribute " + name + " refers to an accessor that does not exist");
-            if (draco.contains("attributes") && draco["attributes"].is_object())
-                for (auto& [name, id] : draco["attributes"].items())
-                    if (!prim["attributes"].contains(name))
-                        throw SceneError(where + "Draco attribute " + name + " is not an attribute of the primitive");
+// What tinygltf's callbacks need: the model it is filling (its buffers and views are parsed before its
+// images), the limits, the first limit broken (reported as itself, not as "not a valid glTF file"), and
+// whether files outside the input may be read.
+struct LoadContext {
+    const tinygltf::Model* model = nullptr;
+    const ImportLimits* limits = nullptr;
+    bool allowExternalFiles = true;
+    std::string limitError;
+};
+
+// Image decoding with its size checked from the header first, so a small file cannot make the importer
+// decode gigabytes. tinygltf hands an image stored in a bufferView over without checking the view against
+// its buffer; that is checked here too, before a byte is read.
+bool loadImageChecked(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int reqWidth,
+                      int reqHeight, const unsigned char* bytes, int size, void* user) {
+    LoadContext& ctx = *static_cast<LoadContext*>(user);
+    if (image->bufferView >= 0) {
+        const tinygltf::BufferView& view = ctx.model->bufferViews[size_t(image->bufferView)];  // tinygltf checked the index
+        const size_t bufferSize = ctx.model->buffers[size_t(view.buffer)].data.size();
+        if (view.byteOffset > bufferSize || view.byteLength > bufferSize - view.byteOffset ||
+            view.byteLength > size_t(std::numeric_limits<int>::max())) {
+            *err += "image " + std::to_string(index) + ": its bufferView lies outside its buffer\n";
+            return false;
         }
     }
+    int width = 0, height = 0, channels = 0;
+    if (size > 0 && stbi_info_from_memory(bytes, size, &width, &height, &channels) &&
+        uint64_t(width) * uint64_t(height) > ctx.limits->maxTexturePixels) {
+        ctx.limitError = "image " + std::to_string(index) + " is " + std::to_string(width) + " x " + std::to_string(height) +
+                         " pixels, more than the limit of " + std::to_string(ctx.limits->maxTexturePixels) +
+                         " (--max-texture-pixels)";
+        *err += ctx.limitError + "\n";
+        return false;
+    }
+    return tinygltf::LoadImageData(image, index, err, warn, reqWidth, reqHeight, bytes, size, nullptr);
+}
+
+// Files a glTF names by URI: regular files only (a URI naming /dev/stdin or a FIFO would block the import),
+// and none at all where the caller forbids them.
+bool regularFile(const std::string& path) {
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+bool fileExists(const std::string& path, void* user) {
+    return static_cast<LoadContext*>(user)->allowExternalFiles && regularFile(path);
+}
+std::string expandFilePath(const std::string& path, void*) { return path; }
+bool readWholeFile(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
+    if (!static_cast<LoadContext*>(user)->allowExternalFiles || !regularFile(path)) {
+        *err += path + ": not a readable regular file\n";
+        return false;
+    }
+    return tinygltf::ReadWholeFile(out, err, path, nullptr);
+}
+bool writeWholeFile(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    *err += "the importer writes no files\n";
+    return false;
+}
+
+// tinygltf without its Draco path still demands that a primitive's indices accessor have a bufferView, which a
+// Draco primitive's has not (its indices are the stream's faces): the `indices` of Draco primitives are taken
+// out of the JSON before tinygltf parses it (the importer reads the faces). Returns the bytes to parse: the
+// same when nothing needs it, else the document (or .glb) rewritten.
+std::vector<uint8_t> withoutDracoIndices(const std::vector<uint8_t>& bytes) {
+    const bool glb = hasGlbMagic(bytes);
+    size_t jsonBegin = 0, jsonLength = bytes.size();
+    if (glb) {
+        uint32_t chunkLength = 0, chunkType = 0;
+        if (bytes.size() < 20) return bytes;  // tinygltf reports it
+        std::memcpy(&chunkLength, bytes.data() + 12, 4);
+        std::memcpy(&chunkType, bytes.data() + 16, 4);
+        if (chunkType != 0x4E4F534Au || chunkLength > bytes.size() - 20) return bytes;
+        jsonBegin = 20;
+        jsonLength = chunkLength;
+    }
+    const char* text = reinterpret_cast<const char*>(bytes.data()) + jsonBegin;
+    if (std::string_view(text, jsonLength).find("KHR_draco_mesh_compression") == std::string_view::npos) return bytes;
+    nlohmann::json doc = nlohmann::json::parse(text, text + jsonLength, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return bytes;
+    bool changed = false;
+    for (nlohmann::json& mesh : doc["meshes"]) {
+        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
+        for (nlohmann::json& prim : mesh["primitives"])
+            if (prim.is_object() && prim.contains("indices") && prim.contains("extensions") && prim["extensions"].is_object() &&
+                prim["extensions"].contains("KHR_draco_mesh_compression")) {
+                prim.erase("indices");
+                changed = true;
+            }
+    }
+    if (!changed) return bytes;
+    std::string json = doc.dump();
+    if (!glb) return std::vector<uint8_t>(json.begin(), json.end());
+    json.append((4 - json.size() % 4) % 4, ' ');
+    const size_t rest = jsonBegin + jsonLength;  // the chunks after JSON, as they are
+    std::vector<uint8_t> out(12);
+    std::memcpy(out.data(), bytes.data(), 8);
+    const uint32_t newJsonLength = uint32_t(json.size()), jsonType = 0x4E4F534Au;
+    out.insert(out.end(), reinterpret_cast<const uint8_t*>(&newJsonLength), reinterpret_cast<const uint8_t*>(&newJsonLength) + 4);
+    out.insert(out.end(), reinterpret_cast<const uint8_t*>(&jsonType), reinterpret_cast<const uint8_t*>(&jsonType) + 4);
+    out.insert(out.end(), json.begin(), json.end());
+    out.insert(out.end(), bytes.begin() + std::ptrdiff_t(rest), bytes.end());
+    const uint32_t total = uint32_t(std::min<size_t>(out.size(), std::numeric_limits<uint32_t>::max()));
+    std::memcpy(out.data() + 8, &total, 4);
+    return out;
 }
 
 }  // namespace
 
-Scene loadGltf(const std::string& path) {
-    {
-        std::ifstream probe(path, std::ios::binary);
-        if (!probe) throw SceneError(path + ": cannot open file");
-    }
-    checkDracoIndices(path);
-    tinygltf::TinyGLTF loader;
+Scene loadGltf(const std::string& path, const ImportLimits& limits) {
+    std::ifstream f(path, std::ios::binary);
+    if (!f || !regularFile(path)) throw SceneError(path + ": cannot open file");
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    if (f.bad()) throw SceneError(path + ": cannot read file");
+    return loadGltfFromMemory(bytes, path, limits);
+}
+
+Scene loadGltfFromMemory(const std::vector<uint8_t>& bytes, const std::string& path, const ImportLimits& limits,
+                         bool allowExternalFiles) {
     tinygltf::Model model;
+    LoadContext ctx;
+    ctx.model = &model;
+    ctx.limits = &limits;
+    ctx.allowExternalFiles = allowExternalFiles;
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(loadImageChecked, &ctx);
+    loader.SetFsCallbacks(tinygltf::FsCallbacks{fileExists, expandFilePath, readWholeFile, writeWholeFile, &ctx});
+    const std::string baseDir = path.find('/') == std::string::npos ? std::string(".") : path.substr(0, path.rfind('/'));
     std::string err, warn;
-    bool ok = hasGlbMagic(path) ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                                : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    bool ok = false;
+    // tinygltf takes the size as a 32-bit unsigned
+    if (bytes.size() > std::numeric_limits<uint32_t>::max())
+        throw SceneError(path + ": the file is larger than 4 GiB, which glTF does not allow");
+    const std::vector<uint8_t> parsed = withoutDracoIndices(bytes);
+    if (parsed.size() > std::numeric_limits<uint32_t>::max())
+        throw SceneError(path + ": the file is larger than 4 GiB, which glTF does not allow");
+    if (hasGlbMagic(parsed))
+        ok = loader.LoadBinaryFromMemory(&model, &err, &warn, parsed.data(), unsigned(parsed.size()), baseDir);
+    else
+        ok = loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(parsed.data()),
+                                        unsigned(parsed.size()), baseDir);
+    if (!ctx.limitError.empty()) throw SceneError(path + ": " + ctx.limitError);
     if (!ok) throw SceneError(path + ": not a valid glTF file: " + trim(err.empty() ? warn : err));
 
     Scene scene;
     scene.sourcePath = path;
     if (!warn.empty()) scene.stats.warnings.push_back(trim(warn));
-    Importer(path, model, scene).run();
+    Importer(path, model, limits, scene).run();
     return scene;
 }
 

@@ -112,11 +112,14 @@ Image winnerMap(const ValidationResult& r) {
 
 std::string headlineSentence(const ValidationResult& r) {
     std::ostringstream s;
-    s << "The neural asset (" << r.neural.bytes << " bytes of weights) renders with relMSE " << fmt("%.4g", r.neural.metrics.relMse)
-      << "; the path tracer needs " << fmt("%.3g", r.neural.equalErrorSeconds) << " s"
-      << (r.neural.equalErrorExtrapolated ? " (extrapolated beyond its measured curve)" : "") << " to reach that error, "
-      << fmt("%.3g", r.neural.speedupOverEvaluation) << "x the network evaluation time and "
-      << fmt("%.3g", r.neural.speedupOverRender) << "x the whole neural render (visibility included).";
+    s << "The neural asset (" << r.neural.bytes << " bytes of weights) renders with relMSE " << fmt("%.4g", r.neural.metrics.relMse);
+    if (referenceIsBlack(r))
+        s << "; " << kNoLightToCompare << ".";
+    else
+        s << "; the path tracer needs " << fmt("%.3g", r.neural.equalErrorSeconds) << " s"
+          << (r.neural.equalErrorExtrapolated ? " (extrapolated beyond its measured curve)" : "") << " to reach that error, "
+          << fmt("%.3g", r.neural.speedupOverEvaluation) << "x the network evaluation time and "
+          << fmt("%.3g", r.neural.speedupOverRender) << "x the whole neural render (visibility included).";
     if (r.baseline) {
         const MethodResult& b = *r.baseline;
         bool neuralWins = r.neural.metrics.relMse <= b.metrics.relMse;
@@ -130,6 +133,15 @@ std::string headlineSentence(const ValidationResult& r) {
 }
 
 }  // namespace
+
+const char* const kNoLightToCompare =
+    "the view has no light to compare: the reference is black (choose a lit view: --camera, --look-from)";
+
+bool referenceIsBlack(const ValidationResult& r) {
+    for (const glm::vec3& p : r.reference.pixels)
+        if (p.x >= kBlackRadiance || p.y >= kBlackRadiance || p.z >= kBlackRadiance) return false;
+    return true;
+}
 
 std::string svgLogLogPlot(const std::string& title, const std::string& xLabel, const std::string& yLabel,
                           const std::vector<PlotSeries>& series, int width, int height) {
@@ -284,11 +296,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     return j;
 }
 
-std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeStats, const std::string& dirPath) {
-    const fs::path dir(dirPath);
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec) throw IoError(dirPath + ": cannot create the folder: " + ec.message());
+static void writeReportFiles(const ValidationResult& r, const nlohmann::json& bakeStats, const fs::path& dir) {
     const float exposure = r.settings.exposure;
     auto both = [&](const std::string& stem, const Image& img) {
         writeExr((dir / (stem + ".exr")).string(), img);
@@ -503,9 +511,14 @@ std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeSta
          "<script>window.addEventListener('load',function(){var im=document.images,ok=0;for(var i=0;i<im.length;++i)"
          "if(im[i].complete&&im[i].naturalWidth>0)++ok;document.body.setAttribute('data-images-total',im.length);"
          "document.body.setAttribute('data-images-loaded',ok);});</script>\n</body></html>\n";
-    fs::path html = dir / "report.html";
-    writeText(html, h.str());
-    return html.string();
+    writeText(dir / "report.html", h.str());
+}
+
+std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeStats, const std::string& dirPath) {
+    // Into a temporary folder that then replaces dirPath: a failed write (a full disk) leaves the last
+    // report as it was, never a folder of some images and no report.html.
+    writeFolderAtomically(dirPath, [&](const std::string& tmp) { writeReportFiles(r, bakeStats, fs::path(tmp)); });
+    return (fs::path(dirPath) / "report.html").string();
 }
 
 }  // namespace nrad

@@ -36,4 +36,10 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
 // Writes the report into `dir` (created if needed); returns the path of report.html. Throws IoError.
 std::string writeReport(const ValidationResult& r, const nlohmann::json& bakeStats, const std::string& dir);
 
+// Whether the reference is black (every channel of every pixel below kBlackRadiance, 20 stops under the default
+// sky's radiance 1): then there is no error to compare, and an equal-error time (1e-13 s) would mislead.
+constexpr float kBlackRadiance = 1e-6f;
+bool referenceIsBlack(const ValidationResult& r);
+extern const char* const kNoLightToCompare;
+
 }  // namespace nrad

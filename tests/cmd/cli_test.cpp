@@ -475,7 +475,8 @@ TEST(CliEnvironment, UnlitSceneGetsTheDefaultSkyAndBadValuesAreRefused) {
         std::string message;
     };
     for (const Bad& b : {Bad{"--environment 1,2", 3, "1,2: no such environment map"},
-                         Bad{"--environment 1,-1,1", 3, "expected three finite values >= 0"},
+                         Bad{"--environment 1,-1,1", 2, "expected three finite values >= 0"},
+                         Bad{"--environment nan,1,1", 2, "expected three finite values >= 0"},
                          Bad{"--environment '" + dir + "/sky.png'", 3, "no such environment map"},
                          Bad{"--environment-intensity 2", 2, "need --environment"},
                          Bad{"--environment 1,1,1 --environment-intensity -1", 2, "--environment-intensity"}}) {
@@ -575,6 +576,94 @@ TEST(CliView, LookFromLookAtAndFov) {
         EXPECT_EQ(b.exitCode, 2) << bad << ": " << b.output;
         EXPECT_FALSE(fs::exists(dir + "/bad.exr")) << bad;
     }
+}
+
+}  // namespace
+}  // namespace nrad
+
+// Issue 37: what a new user runs into. Every output is checked before any work (a failure before the import
+// summary proves it: the scene is not even loaded), a file output naming a folder is a usage error, flags
+// that cannot work are refused up front, and the lighting and camera chosen for the user are said.
+namespace nrad {
+namespace {
+
+bool loadedTheScene(const RunResult& r) { return r.output.find("scene: ") != std::string::npos; }
+
+TEST(CliTrust, OutputsAreCheckedBeforeAnyWork) {
+    const std::string dir = test::temporaryDirectory();
+    const std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    RunResult r = run("bake " + scene + " -o /nonexistent-dir/x.nrad");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_NE(r.output.find("/nonexistent-dir/x.nrad: cannot create file: No such file or directory"), std::string::npos) << r.output;
+    EXPECT_FALSE(loadedTheScene(r)) << r.output;
+    r = run("bake " + scene + " -o '" + dir + "/a.nrad' --stats /nonexistent-dir/s.json");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_FALSE(loadedTheScene(r)) << r.output;
+    r = run("bake " + scene + " -o '" + dir + "'");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find(dir + ": is a folder; name a file"), std::string::npos) << r.output;
+    fs::create_directory(dir + "/image.png");
+    r = run("render " + scene + " -o '" + dir + "/image.png' --spp 1 --width 8");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_FALSE(loadedTheScene(r)) << r.output;
+    r = run("render " + scene + " -o /nonexistent-dir/a.png --spp 1 --width 8");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_FALSE(loadedTheScene(r)) << r.output;
+    // validate checks its report folder before it reads the scene or the asset (which need not exist here)
+    r = run("validate " + scene + " '" + dir + "/no-such.nrad' -o /proc/rep");
+    EXPECT_EQ(r.exitCode, 4) << r.output;
+    EXPECT_NE(r.output.find("/proc/rep: cannot create the folder"), std::string::npos) << r.output;
+    EXPECT_FALSE(loadedTheScene(r)) << r.output;
+    std::ofstream(dir + "/file") << "x";
+    r = run("validate " + scene + " '" + dir + "/no-such.nrad' -o '" + dir + "/file'");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find("is a file; name a folder"), std::string::npos) << r.output;
+    // Nothing was written: the folder holds what the test put there.
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
+}
+
+TEST(CliTrust, FlagsThatCannotWorkAreRefusedUpFront) {
+    const std::string dir = test::temporaryDirectory();
+    const std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    const std::string out = " -o '" + dir + "/a.png' --spp 1 --width 8 ";
+    for (const char* bad : {"--exposure nan", "--exposure inf", "--exposure -nan", "--fov nan", "--sun-angle nan",
+                            "--environment 1,1,1 --environment-intensity nan"}) {
+        RunResult r = run("render " + scene + out + bad);
+        EXPECT_EQ(r.exitCode, 2) << bad << ": " << r.output;
+        EXPECT_NE(r.output.find("not a finite number"), std::string::npos) << bad << ": " << r.output;
+    }
+    // The documented maximum width: refused with the memory it needs, not std::bad_alloc after the scene is
+    // built (an address-space limit of 2 GiB stands in for a smaller machine).
+    const std::string ulimited = "bash -c \"ulimit -v 2097152; '" + test::nradExecutable() + "' render " + scene + " -o '" + dir +
+                                 "/a.png' --spp 1 --width 32768 --height 32768\" 2>&1";
+    FILE* pipe = popen(ulimited.c_str(), "r");
+    std::string text;
+    char buf[4096];
+    for (size_t n; (n = fread(buf, 1, sizeof buf, pipe)) > 0;) text.append(buf, n);
+    const int status = pclose(pipe);
+    EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2) << text;
+    EXPECT_NE(text.find("a 32768 x 32768 image needs about 48.0 GiB; this process can allocate"), std::string::npos) << text;
+    EXPECT_FALSE(fs::exists(dir + "/a.png"));
+}
+
+TEST(CliTrust, TheLightingAndCameraChosenForTheUserAreSaid) {
+    const std::string dir = test::temporaryDirectory();
+    const std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    RunResult r = run("render " + scene + " -o '" + dir + "/a.exr' --spp 1 --width 8");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("'s own light (2 emissive triangles, 0 punctual lights), no environment; the default sky lights "
+                            "only scenes without light of their own"),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("camera: the scene's camera 0"), std::string::npos) << r.output;
+    r = run("render " + scene + " -o '" + dir + "/a.exr' --spp 1 --width 8 --sun 0,1,0");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find(", and the --sun), no environment"), std::string::npos) << r.output;
+    r = run("render " + scene + " -o '" + dir + "/a.exr' --spp 1 --width 8 --look-from 0,1,3 --look-at 0,1,0");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("camera: --look-from 0,1,3 --look-at 0,1,0"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("the scene has none"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("camera 0"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -94,8 +94,8 @@ TEST(Environment, ParsesColoursAndRefusesBadValuesAndFiles) {
     EXPECT_EQ(c.radiance({0, 1, 0}), glm::vec3(1.0f, 2.0f, 4.0f));
     EXPECT_FALSE(parseEnvironment("none").active());
     EXPECT_FALSE(parseEnvironment("0,0,0").active());
-    EXPECT_THROW(parseEnvironment("1,-1,1"), SceneError);
-    EXPECT_THROW(parseEnvironment("1,nan,1"), SceneError);
+    EXPECT_THROW(parseEnvironment("1,-1,1"), EnvironmentSpecError);  // a flag value: exit 2, not 3
+    EXPECT_THROW(parseEnvironment("1,nan,1"), EnvironmentSpecError);
     EXPECT_THROW(parseEnvironment("/no/such/sky.exr"), SceneError);
     const std::string dir = testing::TempDir();
     std::ofstream(dir + "/not-an-image.hdr") << "hello";

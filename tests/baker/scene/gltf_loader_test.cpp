@@ -3,7 +3,13 @@
 #include "baker/scene/gltf_loader.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <fstream>
+#include <functional>
+#include <iterator>
+
+#include <sys/stat.h>
 
 #include <gtest/gtest.h>
 
@@ -163,6 +169,87 @@ TEST(GltfLoader, MissingFileIsASceneError) {
     } catch (const SceneError& e) {
         EXPECT_NE(std::string(e.what()).find("/nonexistent/scene.gltf: cannot open file"), std::string::npos);
     }
+}
+
+std::vector<uint8_t> fileBytes(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return std::vector<uint8_t>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+std::string errorOf(const std::function<void()>& load) {
+    try {
+        load();
+    } catch (const SceneError& e) {
+        return e.what();
+    }
+    return "(no SceneError)";
+}
+
+// Import limits (issue 37): a scene that flattens to more triangles than the limit, or holds a larger image,
+// is refused with the limit and its flag named; at the limit it loads.
+TEST(GltfLoader, LimitsOnTrianglesAndImagePixelsAreEnforced) {
+    const std::string box = sourcePath("scenes/cornell-box/cornell-box.gltf");
+    const size_t triangles = loadGltf(box).stats.trianglesRead;
+    ImportLimits limits;
+    limits.maxTriangles = triangles;
+    EXPECT_EQ(loadGltf(box, limits).stats.trianglesRead, triangles);
+    limits.maxTriangles = triangles - 1;
+    const std::string e = errorOf([&] { loadGltf(box, limits); });
+    EXPECT_NE(e.find(box + ": "), std::string::npos) << e;
+    EXPECT_NE(e.find("exceeds " + std::to_string(triangles - 1) + " triangles"), std::string::npos) << e;
+    EXPECT_NE(e.find("--max-triangles"), std::string::npos) << e;
+
+    // The Avocado's textures are 2048 x 2048: refused from their headers below that, loaded at it.
+    const std::string avocado = externalScene("AvocadoDraco/glTF-Draco/Avocado.gltf");
+    ImportLimits pixels;
+    pixels.maxTexturePixels = 2048 * 2048;
+    EXPECT_GT(loadGltf(avocado, pixels).textures.size(), 0u);
+    pixels.maxTexturePixels = 2048 * 2048 - 1;
+    const std::string t = errorOf([&] { loadGltf(avocado, pixels); });
+    EXPECT_NE(t.find("is 2048 x 2048 pixels, more than the limit of 4194303 (--max-texture-pixels)"), std::string::npos) << t;
+}
+
+// The hostile files of issue 37 are refused fast and without touching memory outside their buffers (the fuzz
+// build runs the same files under ASan): a 16384 x 16384 image is refused from its header, not decoded; a node
+// graph that would flatten to 2^30 instances is refused before one is made.
+TEST(GltfLoader, HostileSizesAreRefusedBeforeAnyWork) {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (const char* name : {"huge-image.gltf", "node-dag.gltf", "accessor-count-wraps.gltf", "accessor-offset-wraps.gltf",
+                             "bytestride-wraps.gltf"}) {
+        const std::string path = sourcePath(std::string("tests/data/malformed/") + name);
+        EXPECT_NE(errorOf([&] { loadGltf(path); }).find(path + ": "), std::string::npos) << name;
+    }
+    // Before the fix: 13 s for the image, 49 s for the graph (and gigabytes). Loose: a slow machine passes.
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+}
+
+// From memory: the same scene as from the file; with external files forbidden, a buffer URI is refused; and a
+// URI naming something that is not a regular file (a FIFO would block the import forever) is refused.
+TEST(GltfLoader, FromMemoryAndExternalFiles) {
+    const std::string glb = externalScene("CornellBox/CornellBox.glb");
+    const Scene a = loadGltf(glb), b = loadGltfFromMemory(fileBytes(glb), glb);
+    EXPECT_EQ(a.mesh.positions, b.mesh.positions);
+    EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
+
+    const std::string missing = sourcePath("tests/data/malformed/missing-buffer.gltf");
+    EXPECT_NE(errorOf([&] { loadGltf(missing); }).find("does-not-exist.bin"), std::string::npos);
+    const std::string dir = test::temporaryDirectory();
+    const std::vector<uint8_t> missingBytes = fileBytes(missing);
+    std::string text(missingBytes.begin(), missingBytes.end());
+    const std::string fifo = dir + "/pipe.bin";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    text.replace(text.find("does-not-exist.bin"), std::string("does-not-exist.bin").size(), "pipe.bin");
+    const std::string scene = dir + "/fifo.gltf";
+    std::ofstream(scene) << text;
+    const std::string e = errorOf([&] { loadGltf(scene); });  // returns: never opens the FIFO
+    EXPECT_NE(e.find("pipe.bin"), std::string::npos) << e;
+
+    const std::string box = sourcePath("tests/data/valid/byte-indices.gltf");  // data URIs only: loads either way
+    EXPECT_EQ(loadGltfFromMemory(fileBytes(box), box, {}, false).mesh.triangleCount(), 1u);
+    std::ofstream(dir + "/pipe-free.bin", std::ios::binary) << std::string(36, '\0');
+    text.replace(text.find("pipe.bin"), std::string("pipe.bin").size(), "pipe-free.bin");
+    const std::vector<uint8_t> bytes(text.begin(), text.end());
+    EXPECT_NE(errorOf([&] { loadGltfFromMemory(bytes, dir + "/x.gltf", {}, false); }).find("pipe-free.bin"), std::string::npos);
 }
 
 }  // namespace
