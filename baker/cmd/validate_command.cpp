@@ -19,8 +19,8 @@ namespace nrad {
 
 namespace {
 
-// Bytes a validation holds per pixel at its peak (reference, neural, baseline and curve images, their error
-// maps and encoded copies): measured as peak RSS over pixels at 2048 x 2048, rounded up (docs/usage.md).
+// Bytes a validation holds per pixel at its peak: an estimate, not a measurement (about a dozen float images
+// held at once: reference, neural, baseline, the curve's, the error maps; with their encoded copies).
 constexpr uint64_t kValidateBytesPerPixel = 200;
 
 struct ValidateOptions {
