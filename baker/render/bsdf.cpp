@@ -46,10 +46,29 @@ Frame Frame::fromNormal(const glm::vec3& n) {
     return {glm::vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), glm::vec3(b, sign + n.y * n.y * a, -n.y), n};
 }
 
+// D = alpha^2 / (pi (sin^2 + alpha^2 cos^2)^2). The textbook form cos^2 (alpha^2 - 1) + 1 cancels near the
+// mirror direction: at alpha 1e-3 its 1e-6 is the difference of two numbers near one, 1 - cos^2 keeps a few
+// bits, D came out up to tens of percent off, and eval and pdf, rounding the half vector differently, gave
+// different values, so their ratio (the sampling weight) was biased: a white mirror under a uniform sky
+// reflected 0.949 at normal incidence and 1.02 at 45 degrees (issue 37; tests/baker/render/smooth_bsdf_test.cpp).
+// Here sin^2 = (1 - cos) (1 + cos) is exact to a rounding for the given cosine.
 float Bsdf::ggxD(float cosThetaH, float alpha) {
     if (cosThetaH <= 0.0f) return 0.0f;
     float a2 = alpha * alpha;
-    float d = cosThetaH * cosThetaH * (a2 - 1.0f) + 1.0f;
+    float d = (1.0f - cosThetaH) * (1.0f + cosThetaH) + a2 * (cosThetaH * cosThetaH);
+    return a2 / (kPi * d * d);
+}
+
+// The same at a half vector h of any positive length, with sin^2 and cos^2 from its components: sin^2 =
+// (hx^2 + hy^2) / |h|^2 carries all the digits of h's departure from the normal, which its z component (and
+// any cosine rounded to a float) has lost near the mirror direction. eval and pdf both call it with the same
+// unnormalised wo + wi, so their D are the same bits and cancel in f cos / pdf.
+float Bsdf::ggxD(const glm::vec3& h, float alpha) {
+    if (h.z <= 0.0f) return 0.0f;
+    float a2 = alpha * alpha;
+    float t2 = h.x * h.x + h.y * h.y;
+    float z2 = h.z * h.z;
+    float d = (t2 + a2 * z2) / (t2 + z2);
     return a2 / (kPi * d * d);
 }
 
@@ -116,23 +135,25 @@ glm::vec3 Bsdf::evalLocal(const Outgoing& o, const glm::vec3& wiIn) const {
         // weighted by what the specular layer transmits and tinted by the base colour.
         if (!transmits()) return glm::vec3(0.0f);
         const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
-        glm::vec3 h = glm::normalize(wo + wi);
+        const glm::vec3 sum = wo + wi;
+        glm::vec3 h = glm::normalize(sum);
         float schlick = pow5(1.0f - std::clamp(glm::dot(wo, h), 0.0f, 1.0f));
         float g2 = 1.0f / (1.0f + o.lambda + ggxLambda(wi.z, alpha_));
-        float lobe = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
+        float lobe = ggxD(sum, alpha_) * g2 / (4.0f * wo.z * wi.z);
         glm::vec3 fr = dielectricF0_ + (glm::vec3(1.0f) - dielectricF0_) * schlick;
         return (1.0f - p_.metallic) * p_.transmission * (glm::vec3(1.0f) - p_.specular * fr) * p_.baseColor * lobe;
     }
     const glm::vec3& wi = wiIn;
-    glm::vec3 h = wo + wi;
-    float hl = glm::length(h);
+    const glm::vec3 sum = wo + wi;
+    float hl = glm::length(sum);
     if (!(hl > 0.0f)) return glm::vec3(0.0f);
-    h /= hl;
+    const glm::vec3 h = sum / hl;
     float vdoth = std::clamp(glm::dot(wo, h), 0.0f, 1.0f);
     float schlick = pow5(1.0f - vdoth);
-    // Specular microfacet term: D * V with the height-correlated Smith G2.
+    // Specular microfacet term: D * V with the height-correlated Smith G2 (D from the unnormalised sum, as in
+    // pdfLocal, so that the two are the same bits).
     float g2 = 1.0f / (1.0f + o.lambda + ggxLambda(wi.z, alpha_));
-    float specular = ggxD(h.z, alpha_) * g2 / (4.0f * wo.z * wi.z);
+    float specular = ggxD(sum, alpha_) * g2 / (4.0f * wo.z * wi.z);
     glm::vec3 diffuse = p_.baseColor / kPi;
     // Dielectric: the specular layer weighted by fresnel_mix's Schlick term at the microfacet normal, as in
     // appendix B. The diffuse base is weighted by what the layer transmits in *both* directions,
@@ -154,20 +175,22 @@ float Bsdf::pdfLocal(const Outgoing& o, const glm::vec3& wiIn) const {
     if (wiIn.z < 0.0f) {
         if (!(pTrans > 0.0f)) return 0.0f;
         const glm::vec3 wi(wiIn.x, wiIn.y, -wiIn.z);
-        glm::vec3 h = glm::normalize(wo + wi);
+        const glm::vec3 sum = wo + wi;
+        glm::vec3 h = glm::normalize(sum);
         if (!(glm::dot(wo, h) > 0.0f)) return 0.0f;
         float g1 = 1.0f / (1.0f + o.lambda);
-        return pTrans * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
+        return pTrans * g1 * ggxD(sum, alpha_) / (4.0f * wo.z);
     }
     const glm::vec3& wi = wiIn;
     float pdf = (1.0f - pSpec - pTrans) * wi.z / kPi;
     if (pSpec > 0.0f) {
-        glm::vec3 h = glm::normalize(wo + wi);
+        const glm::vec3 sum = wo + wi;
+        glm::vec3 h = glm::normalize(sum);
         float odoth = glm::dot(wo, h);
         if (odoth > 0.0f) {
             // Visible-normal pdf transformed to the reflected direction: G1(wo) D(h) / (4 wo.z).
             float g1 = 1.0f / (1.0f + o.lambda);
-            pdf += pSpec * g1 * ggxD(h.z, alpha_) / (4.0f * wo.z);
+            pdf += pSpec * g1 * ggxD(sum, alpha_) / (4.0f * wo.z);
         }
     }
     return pdf;

@@ -76,6 +76,9 @@ public:
     // Largest channel of the dielectric Schlick Fresnel at the macro normal.
     float macroFresnel(float cosTheta) const;
     static float ggxD(float cosThetaH, float alpha);
+    // D at the half vector h (any positive length: eval and pdf pass wo + wi), without cancellation near the
+    // mirror direction.
+    static float ggxD(const glm::vec3& h, float alpha);
     static float ggxLambda(float cosTheta, float alpha);
 
 private:

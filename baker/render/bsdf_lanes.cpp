@@ -26,11 +26,14 @@ LANE float pow5(float x) {
 // Selects are written one condition at a time, on floats: GCC vectorises those, not nested or combined
 // boolean ones.
 
-LANE float ggxD(float cosThetaH, float alpha) {
+// Bsdf::ggxD at the unnormalised half vector (hx, hy, hz).
+LANE float ggxD(float hx, float hy, float hz, float alpha) {
     float a2 = alpha * alpha;
-    float d = cosThetaH * cosThetaH * (a2 - 1.0f) + 1.0f;
+    float t2 = hx * hx + hy * hy;
+    float z2 = hz * hz;
+    float d = (t2 + a2 * z2) / (t2 + z2);
     float D = a2 / (kPi * d * d);
-    return cosThetaH <= 0.0f ? 0.0f : D;
+    return hz <= 0.0f ? 0.0f : D;
 }
 
 LANE float ggxLambda(float cosTheta, float alpha) {
@@ -103,15 +106,13 @@ LANE Vertex vertex(const BsdfLanes& L, size_t k) {
 
 // Bsdf::evalLocal for wi on wo's side (or zero), into r, g, b.
 LANE void evalLocal(const Vertex& v, float ix, float iy, float iz, float& r, float& g, float& b) {
-    float hx = v.wx + ix, hy = v.wy + iy, hz = v.wz + iz;
-    const float hl = std::sqrt(hx * hx + hy * hy + hz * hz);
-    hx /= hl;
-    hy /= hl;
-    hz /= hl;
+    const float sx = v.wx + ix, sy = v.wy + iy, sz = v.wz + iz;
+    const float hl = std::sqrt(sx * sx + sy * sy + sz * sz);
+    const float hx = sx / hl, hy = sy / hl, hz = sz / hl;
     const float vdoth = clamp01(v.wx * hx + v.wy * hy + v.wz * hz);
     const float schlick = pow5(1.0f - vdoth);
     const float g2 = 1.0f / (1.0f + v.lambda + ggxLambda(iz, v.alpha));
-    const float spec = ggxD(hz, v.alpha) * g2 / (4.0f * v.wz * iz);
+    const float spec = ggxD(sx, sy, sz, v.alpha) * g2 / (4.0f * v.wz * iz);
     const float transmitted = (1.0f - v.specular * v.fresnel) * (1.0f - v.specular * macroFresnel(v, iz));
     const float m = v.metallic, s = v.specular;
     auto channel = [&](float base, float f0) {
@@ -140,7 +141,7 @@ LANE float pdfLocal(const Vertex& v, float ix, float iy, float iz) {
     const float hx = hx0 * inv, hy = hy0 * inv, hz = hz0 * inv;
     const float odoth = v.wx * hx + v.wy * hy + v.wz * hz;
     const float g1 = 1.0f / (1.0f + v.lambda);
-    const float withSpec = pdf + v.pSpec * g1 * ggxD(hz, v.alpha) / (4.0f * v.wz);
+    const float withSpec = pdf + v.pSpec * g1 * ggxD(hx0, hy0, hz0, v.alpha) / (4.0f * v.wz);
     const float spec = odoth > 0.0f ? withSpec : pdf;
     pdf = v.pSpec > 0.0f ? spec : pdf;
     pdf = v.wz <= 0.0f ? 0.0f : pdf;
