@@ -289,9 +289,17 @@ int main(int argc, char** argv) {
 
     // One point per call (nradEvaluate), as a shader's per-pixel fallback or a gameplay query would: the rate
     // must not fall with the number of networks. Grids of 3^3, 7^3 and 16^3 occupied voxels, incoherent points.
+    // Per kernel, so that AUTO's choice can be checked against the others on this path too.
+    std::vector<NradKernel> singleKernels;
+    for (NradKernel k : {NRAD_KERNEL_SCALAR, NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512})
+        if (nradKernelSupported(k)) singleKernels.push_back(k);
     if (!treeOnly) {
-        std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, kernel %d:\n", int(nradActiveKernel()));
-        std::printf("  %-10s %10s %14s\n", "grid", "networks", "M points/s");
+        std::printf("\nnradEvaluate, one point per call, 1 thread, incoherent points, M points/s (AUTO: kernel %d):\n",
+                    int(nradActiveKernel()));
+        std::printf("  %-10s %10s", "grid", "networks");
+        for (NradKernel k : singleKernels)
+            std::printf(" %10s", k == NRAD_KERNEL_SCALAR ? "scalar" : k == NRAD_KERNEL_AVX2 ? "avx2" : "avx512");
+        std::printf("\n");
     }
     for (uint32_t dim : {3u, 7u, 16u}) {
         if (treeOnly) break;
@@ -306,19 +314,25 @@ int main(int argc, char** argv) {
         if (nradLoadFromMemory(bigBytes.data(), bigBytes.size(), NRAD_LOAD_COPY, &h, nullptr, 0) != NRAD_OK) return 1;
         const size_t n = std::min<size_t>(points, 200'000);
         Points single = makePoints(n, false, big.grid, 5);
-        double best = 0.0;
-        for (int r = 0; r < repeat; ++r) {
-            float rgb[3];
-            float sink = 0.0f;
-            auto t0 = clock_type::now();
-            for (size_t i = 0; i < n; ++i) {
-                nradEvaluate(h, &single.p[3 * i], &single.n[3 * i], &single.d[3 * i], rgb, nullptr);
-                sink += rgb[0];
+        std::printf("  %-10s %10zu", (std::to_string(dim) + "^3").c_str(), big.voxels.size());
+        for (NradKernel k : singleKernels) {
+            nradSelectKernel(k);
+            double best = 0.0;
+            for (int r = 0; r < repeat; ++r) {
+                float rgb[3];
+                float sink = 0.0f;
+                auto t0 = clock_type::now();
+                for (size_t i = 0; i < n; ++i) {
+                    nradEvaluate(h, &single.p[3 * i], &single.n[3 * i], &single.d[3 * i], rgb, nullptr);
+                    sink += rgb[0];
+                }
+                best = std::max(best, double(n) / seconds(t0, clock_type::now()));
+                if (sink < 0.0f) std::printf("impossible\n");
             }
-            best = std::max(best, double(n) / seconds(t0, clock_type::now()));
-            if (sink < 0.0f) std::printf("impossible\n");
+            std::printf(" %10.2f", best * 1e-6);
         }
-        std::printf("  %-10s %10zu %14.2f\n", (std::to_string(dim) + "^3").c_str(), big.voxels.size(), best * 1e-6);
+        std::printf("\n");
+        nradSelectKernel(NRAD_KERNEL_AUTO);
         nradReleaseAsset(h);
     }
 

@@ -203,183 +203,197 @@ struct Attribute {
     }
 };
 
+// Every kernel this CPU runs, the scalar one first.
+std::vector<NradKernel> kernels() {
+    std::vector<NradKernel> k = {NRAD_KERNEL_SCALAR};
+    for (NradKernel c : {NRAD_KERNEL_AVX2, NRAD_KERNEL_AVX512, NRAD_KERNEL_NEON})
+        if (nradKernelSupported(c)) k.push_back(c);
+    return k;
+}
+
 // Coherent points (runs of 11 in one cell of the grid, bands included, as a rasterised surface gives them),
 // with a few zero normals and points outside the grid: every path of the vector G-buffer reader is taken
 // (whole vectors in one voxel, blended, spanning voxels, empty voxels, invalid points, the partial last
-// vector), and every layout of attributes and pixels must give the batch calls' bits.
+// vector), and every layout of attributes and pixels must give the batch calls' bits, in every kernel (each
+// vector kernel has its own transposing readers and writer: a lane out of place fails here).
 TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
-    const uint64_t before = rt::gbufferBlocksSoFar(), treeBefore = rt::treeBlocksSoFar();
-    // A blended grid asset, and a kd-tree asset over an 8^3 lattice of the same box (cells of the lattice are
-    // the runs' cells below; leaves hold several).
-    format::Asset grid =
-        test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 9,
-                          glm::uvec3(4, 3, 3), 0.125f);
-    grid.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;  // the whole shading contract
-    format::Asset tree = grid;
-    ASSERT_FALSE(test::makeRandomTreeAsset(tree, 8, 12, 3, 7, 5).empty());
-    for (const format::Asset* sourceAsset : {&grid, &tree}) {
-        const format::Asset& source = *sourceAsset;
-        nrad::Asset asset;
-        const std::vector<uint8_t> assetBytes = format::encode(source);
-        ASSERT_EQ(asset.loadFromMemory(assetBytes.data(), assetBytes.size()), NRAD_OK);
-        // Three tiles, the last one partial: a count that is not a whole number of vectors (the last point is
-        // read by the scalar gather), and one that is (the vector reader's exact reads of the last point).
-        for (const size_t count : {size_t(2101), size_t(2112)}) {
-            std::mt19937 rng(12);
-            std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
-            std::vector<float> p(3 * count), n(3 * count), d(3 * count);
-            std::vector<NradSurface> surfaces(count);
-            uint32_t cell[3] = {0, 0, 0};
-            for (size_t i = 0; i < count; ++i) {
-                if (i % 11 == 0)
-                    for (int k = 0; k < 3; ++k) cell[k] = uint32_t(rng() % source.grid.dims[k]);
-                for (int k = 0; k < 3; ++k) {
-                    const float size =
-                        (source.grid.upper[k] - source.grid.lower[k]) / float(source.grid.dims[k]);
-                    p[3 * i + size_t(k)] = source.grid.lower[k] + size * (float(cell[k]) + u(rng));
-                    n[3 * i + size_t(k)] = 2.0f * s(rng);  // not unit length
-                    d[3 * i + size_t(k)] = s(rng);
-                }
-                if (i % 97 == 5) n[3 * i] = n[3 * i + 1] = n[3 * i + 2] = 0.0f;  // invalid
-                if (i % 89 == 7) p[3 * i + 1] = source.grid.upper[1] + 0.5f;     // outside
-                surfaces[i] = {{u(rng), u(rng), u(rng)},
-                               u(rng) < 0.3f ? 1.0f : u(rng) < 0.5f ? 0.0f : u(rng),
-                               u(rng),
-                               u(rng) < 0.5f ? 1.0f : 1.5f * u(rng),
-                               {u(rng), 0.0f, 4.0f * u(rng)}};
-                // Material terms out of range or not finite now and then: the shading contract's clamps and NaN
-                // rules in every lane position.
-                const float odd[] = {-0.5f, 1.5f, std::numeric_limits<float>::quiet_NaN(),
-                                     std::numeric_limits<float>::infinity(), -0.0f};
-                if (i % 13 == 3) surfaces[i].roughness = odd[(i / 13) % 5];
-                if (i % 17 == 4) surfaces[i].metallic = odd[(i / 17) % 5];
-                if (i % 19 == 6) surfaces[i].baseColor[(i / 19) % 3] = odd[(i / 19) % 5];
-                if (i % 23 == 8) surfaces[i].emission[(i / 23) % 3] = odd[(i / 23) % 5];
-                if (i % 29 == 9) surfaces[i].specular = odd[(i / 29) % 5];
-            }
-            const float eye[3] = {0.25f, 7.0f, -3.0f};
-            constexpr size_t kPaddedSurface = sizeof(NradSurface) + 7;
-            std::vector<uint8_t> paddedSurfaces(count * kPaddedSurface, 0xC3);
-            for (size_t i = 0; i < count; ++i)
-                std::memcpy(&paddedSurfaces[i * kPaddedSurface], &surfaces[i], sizeof(NradSurface));
-            struct Input {
-                size_t positionStride, normalStride, directionStride;
-                bool positionHalf, normalHalf, directionHalf;
-            };
-            const Input inputs[] = {
-                {28, 28, 28, false, true, true},  // one texel: position fp32, normal and direction fp16
-                {12, 6, 6, false, true, true},    // tightly packed
-                {6, 12, 16, true, false, false},  // fp16 positions, fp32 vectors
-                {13, 7, 9, false, true, true},    // odd strides
-                {4, 2, 6, false, true, true},     // overlapping attributes (strides under their size)
-            };
-            struct Output {
-                bool half;
-                int channels;
-                size_t stride;
-            };
-            const Output outputs[] = {{true, 4, 0},  {true, 4, 12},  {true, 3, 0},
-                                      {false, 3, 0}, {false, 4, 20}, {true, 3, 10}};
-            for (const Input& in : inputs)
-                for (int mode = 0; mode < 4; ++mode) {  // unit vectors or not, eye or per-pixel directions
-                    const bool unit = mode & 1, eyeMode = mode & 2;
-                    const Attribute position(p, in.positionStride, in.positionHalf),
-                        normal(n, in.normalStride, in.normalHalf),
-                        direction(d, in.directionStride, in.directionHalf);
-                    // The reference batches' inputs: the values the runtime reads, prepared as it documents.
-                    std::vector<float> rp(3 * count), rn(3 * count), rd(3 * count);
-                    for (size_t i = 0; i < count; ++i) {
-                        for (int k = 0; k < 3; ++k) {
-                            rp[3 * i + size_t(k)] = position.value(i, k);
-                            rn[3 * i + size_t(k)] = normal.value(i, k);
-                            rd[3 * i + size_t(k)] =
-                                eyeMode ? eye[k] - rp[3 * i + size_t(k)] : direction.value(i, k);
-                        }
-                        for (float* v : {&rn[3 * i], &rd[3 * i]}) {
-                            if (unit && !(eyeMode && v == &rd[3 * i])) continue;
-                            const float len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-                            const bool ok = len2 > 0.0f && std::isfinite(len2);
-                            const float inv = 1.0f / std::sqrt(len2);
-                            for (int k = 0; k < 3; ++k)
-                                v[k] = ok ? v[k] * inv : std::numeric_limits<float>::quiet_NaN();
-                        }
+    for (const NradKernel kernel : kernels()) {
+        SCOPED_TRACE("kernel " + std::to_string(int(kernel)));
+        ASSERT_EQ(nradSelectKernel(kernel), NRAD_OK);
+        const uint64_t before = rt::gbufferBlocksSoFar(), treeBefore = rt::treeBlocksSoFar();
+        // A blended grid asset, and a kd-tree asset over an 8^3 lattice of the same box (cells of the lattice are
+        // the runs' cells below; leaves hold several).
+        format::Asset grid =
+            test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 9,
+                              glm::uvec3(4, 3, 3), 0.125f);
+        grid.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;  // the whole shading contract
+        format::Asset tree = grid;
+        ASSERT_FALSE(test::makeRandomTreeAsset(tree, 8, 12, 3, 7, 5).empty());
+        for (const format::Asset* sourceAsset : {&grid, &tree}) {
+            const format::Asset& source = *sourceAsset;
+            nrad::Asset asset;
+            const std::vector<uint8_t> assetBytes = format::encode(source);
+            ASSERT_EQ(asset.loadFromMemory(assetBytes.data(), assetBytes.size()), NRAD_OK);
+            // Three tiles, the last one partial: a count that is not a whole number of vectors (the last point is
+            // read by the scalar gather), and one that is (the vector reader's exact reads of the last point).
+            for (const size_t count : {size_t(2101), size_t(2112)}) {
+                std::mt19937 rng(12);
+                std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
+                std::vector<float> p(3 * count), n(3 * count), d(3 * count);
+                std::vector<NradSurface> surfaces(count);
+                uint32_t cell[3] = {0, 0, 0};
+                for (size_t i = 0; i < count; ++i) {
+                    if (i % 11 == 0)
+                        for (int k = 0; k < 3; ++k) cell[k] = uint32_t(rng() % source.grid.dims[k]);
+                    for (int k = 0; k < 3; ++k) {
+                        const float size =
+                            (source.grid.upper[k] - source.grid.lower[k]) / float(source.grid.dims[k]);
+                        p[3 * i + size_t(k)] = source.grid.lower[k] + size * (float(cell[k]) + u(rng));
+                        n[3 * i + size_t(k)] = 2.0f * s(rng);  // not unit length
+                        d[3 * i + size_t(k)] = s(rng);
                     }
-                    for (bool shade : {false, true}) {
-                        std::vector<float> expected(3 * count);
-                        std::vector<uint8_t> expectedFlags(count), flags(count, 0xEE);
-                        ASSERT_EQ(asset.evaluateBatch(count, rp.data(), rn.data(), rd.data(), expected.data(),
-                                                      expectedFlags.data()),
-                                  NRAD_OK);
-                        if (shade) {
-                            shadeReference(source.header.flags, count, rn.data(), rd.data(), surfaces.data(),
-                                           expected.data());
-                            // nradShadeBatch, which runs the same driver, against the same reference.
-                            std::vector<float> batch(3 * count);
-                            std::vector<uint8_t> batchFlags(count);
-                            ASSERT_EQ(asset.shadeBatch(count, rp.data(), rn.data(), rd.data(), surfaces.data(),
-                                                       batch.data(), batchFlags.data()),
+                    if (i % 97 == 5) n[3 * i] = n[3 * i + 1] = n[3 * i + 2] = 0.0f;  // invalid
+                    if (i % 89 == 7) p[3 * i + 1] = source.grid.upper[1] + 0.5f;     // outside
+                    surfaces[i] = {{u(rng), u(rng), u(rng)},
+                                   u(rng) < 0.3f ? 1.0f : u(rng) < 0.5f ? 0.0f : u(rng),
+                                   u(rng),
+                                   u(rng) < 0.5f ? 1.0f : 1.5f * u(rng),
+                                   {u(rng), 0.0f, 4.0f * u(rng)}};
+                    // Material terms out of range or not finite now and then: the shading contract's clamps and NaN
+                    // rules in every lane position.
+                    const float odd[] = {-0.5f, 1.5f, std::numeric_limits<float>::quiet_NaN(),
+                                         std::numeric_limits<float>::infinity(), -0.0f};
+                    if (i % 13 == 3) surfaces[i].roughness = odd[(i / 13) % 5];
+                    if (i % 17 == 4) surfaces[i].metallic = odd[(i / 17) % 5];
+                    if (i % 19 == 6) surfaces[i].baseColor[(i / 19) % 3] = odd[(i / 19) % 5];
+                    if (i % 23 == 8) surfaces[i].emission[(i / 23) % 3] = odd[(i / 23) % 5];
+                    if (i % 29 == 9) surfaces[i].specular = odd[(i / 29) % 5];
+                }
+                const float eye[3] = {0.25f, 7.0f, -3.0f};
+                constexpr size_t kPaddedSurface = sizeof(NradSurface) + 7;
+                std::vector<uint8_t> paddedSurfaces(count * kPaddedSurface, 0xC3);
+                for (size_t i = 0; i < count; ++i)
+                    std::memcpy(&paddedSurfaces[i * kPaddedSurface], &surfaces[i], sizeof(NradSurface));
+                struct Input {
+                    size_t positionStride, normalStride, directionStride;
+                    bool positionHalf, normalHalf, directionHalf;
+                };
+                const Input inputs[] = {
+                    {28, 28, 28, false, true, true},  // one texel: position fp32, normal and direction fp16
+                    {12, 6, 6, false, true, true},    // tightly packed
+                    {6, 12, 16, true, false, false},  // fp16 positions, fp32 vectors
+                    {13, 7, 9, false, true, true},    // odd strides
+                    {4, 2, 6, false, true, true},     // overlapping attributes (strides under their size)
+                };
+                struct Output {
+                    bool half;
+                    int channels;
+                    size_t stride;
+                };
+                const Output outputs[] = {{true, 4, 0},  {true, 4, 12},  {true, 3, 0},
+                                          {false, 3, 0}, {false, 4, 20}, {true, 3, 10}};
+                for (const Input& in : inputs)
+                    for (int mode = 0; mode < 4; ++mode) {  // unit vectors or not, eye or per-pixel directions
+                        const bool unit = mode & 1, eyeMode = mode & 2;
+                        const Attribute position(p, in.positionStride, in.positionHalf),
+                            normal(n, in.normalStride, in.normalHalf),
+                            direction(d, in.directionStride, in.directionHalf);
+                        // The reference batches' inputs: the values the runtime reads, prepared as it documents.
+                        std::vector<float> rp(3 * count), rn(3 * count), rd(3 * count);
+                        for (size_t i = 0; i < count; ++i) {
+                            for (int k = 0; k < 3; ++k) {
+                                rp[3 * i + size_t(k)] = position.value(i, k);
+                                rn[3 * i + size_t(k)] = normal.value(i, k);
+                                rd[3 * i + size_t(k)] =
+                                    eyeMode ? eye[k] - rp[3 * i + size_t(k)] : direction.value(i, k);
+                            }
+                            for (float* v : {&rn[3 * i], &rd[3 * i]}) {
+                                if (unit && !(eyeMode && v == &rd[3 * i])) continue;
+                                const float len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                                const bool ok = len2 > 0.0f && std::isfinite(len2);
+                                const float inv = 1.0f / std::sqrt(len2);
+                                for (int k = 0; k < 3; ++k)
+                                    v[k] = ok ? v[k] * inv : std::numeric_limits<float>::quiet_NaN();
+                            }
+                        }
+                        for (bool shade : {false, true}) {
+                            std::vector<float> expected(3 * count);
+                            std::vector<uint8_t> expectedFlags(count), flags(count, 0xEE);
+                            ASSERT_EQ(asset.evaluateBatch(count, rp.data(), rn.data(), rd.data(), expected.data(),
+                                                          expectedFlags.data()),
                                       NRAD_OK);
-                            ASSERT_EQ(batchFlags, expectedFlags);
-                            ASSERT_EQ(std::memcmp(batch.data(), expected.data(), 4 * batch.size()), 0);
-                        }
-                        for (const Output& out : outputs) {
-                            const size_t pixel = size_t(out.channels) * (out.half ? 2 : 4),
-                                         stride = out.stride ? out.stride : pixel;
-                            std::vector<uint8_t> pixels((count - 1) * stride + pixel + 8, 0x5A);
-                            NradGBuffer g;
-                            std::memset(&g, 0, sizeof g);
-                            g.structSize = sizeof g;
-                            g.flags =
-                                (unit ? NRAD_GBUFFER_UNIT_VECTORS : 0u) | (eyeMode ? NRAD_GBUFFER_EYE : 0u);
-                            g.count = count;
-                            g.position = position.describe();
-                            g.normal = normal.describe();
-                            if (!eyeMode) g.direction = direction.describe();
-                            for (int k = 0; k < 3; ++k) g.eye[k] = eye[k];
-                            g.surfaces = shade ? surfaces.data() : nullptr;
-                            if (shade && !out.half) {  // material terms inside a larger record, an odd stride
-                                g.surfaces = reinterpret_cast<const NradSurface*>(paddedSurfaces.data());
-                                g.surfaceStride = kPaddedSurface;
+                            if (shade) {
+                                shadeReference(source.header.flags, count, rn.data(), rd.data(), surfaces.data(),
+                                               expected.data());
+                                // nradShadeBatch, which runs the same driver, against the same reference.
+                                std::vector<float> batch(3 * count);
+                                std::vector<uint8_t> batchFlags(count);
+                                ASSERT_EQ(asset.shadeBatch(count, rp.data(), rn.data(), rd.data(), surfaces.data(),
+                                                           batch.data(), batchFlags.data()),
+                                          NRAD_OK);
+                                ASSERT_EQ(batchFlags, expectedFlags);
+                                ASSERT_EQ(std::memcmp(batch.data(), expected.data(), 4 * batch.size()), 0);
                             }
-                            g.pointFlags = flags.data();
-                            g.output = pixels.data();
-                            g.outputStride = out.stride;
-                            g.outputFormat = out.half ? NRAD_FORMAT_F16 : NRAD_FORMAT_F32;
-                            g.outputChannels = uint32_t(out.channels);
-                            ASSERT_EQ(nradShadeGBuffer(asset.get(), &g, nullptr, 0), NRAD_OK);
-                            ASSERT_EQ(flags, expectedFlags);
-                            const std::string where =
-                                "strides " + std::to_string(in.positionStride) + "/" +
-                                std::to_string(in.normalStride) + "/" + std::to_string(in.directionStride) +
-                                " mode " + std::to_string(mode) + " shade " + std::to_string(shade) +
-                                " pixel " + std::to_string(pixel) + "/" + std::to_string(stride);
-                            for (size_t i = 0; i < count; ++i) {
-                                const uint8_t* px = &pixels[i * stride];
-                                for (int c = 0; c < out.channels; ++c) {
-                                    const float v = c < 3 ? expected[3 * i + size_t(c)] : 1.0f;
-                                    if (out.half) {
-                                        uint16_t h;
-                                        std::memcpy(&h, px + 2 * c, 2);
-                                        ASSERT_EQ(h, format::floatToHalf(v))
-                                            << where << " point " << i << " channel " << c;
-                                    } else {
-                                        ASSERT_EQ(std::memcmp(px + 4 * c, &v, 4), 0)
-                                            << where << " point " << i << " channel " << c;
-                                    }
+                            for (const Output& out : outputs) {
+                                const size_t pixel = size_t(out.channels) * (out.half ? 2 : 4),
+                                             stride = out.stride ? out.stride : pixel;
+                                std::vector<uint8_t> pixels((count - 1) * stride + pixel + 8, 0x5A);
+                                NradGBuffer g;
+                                std::memset(&g, 0, sizeof g);
+                                g.structSize = sizeof g;
+                                g.flags =
+                                    (unit ? NRAD_GBUFFER_UNIT_VECTORS : 0u) | (eyeMode ? NRAD_GBUFFER_EYE : 0u);
+                                g.count = count;
+                                g.position = position.describe();
+                                g.normal = normal.describe();
+                                if (!eyeMode) g.direction = direction.describe();
+                                for (int k = 0; k < 3; ++k) g.eye[k] = eye[k];
+                                g.surfaces = shade ? surfaces.data() : nullptr;
+                                if (shade && !out.half) {  // material terms inside a larger record, an odd stride
+                                    g.surfaces = reinterpret_cast<const NradSurface*>(paddedSurfaces.data());
+                                    g.surfaceStride = kPaddedSurface;
                                 }
-                                const size_t gap = i + 1 < count ? stride - pixel : 8;
-                                for (size_t b = 0; b < gap; ++b)
-                                    ASSERT_EQ(px[pixel + b], 0x5A) << where << ": wrote past pixel " << i;
+                                g.pointFlags = flags.data();
+                                g.output = pixels.data();
+                                g.outputStride = out.stride;
+                                g.outputFormat = out.half ? NRAD_FORMAT_F16 : NRAD_FORMAT_F32;
+                                g.outputChannels = uint32_t(out.channels);
+                                ASSERT_EQ(nradShadeGBuffer(asset.get(), &g, nullptr, 0), NRAD_OK);
+                                ASSERT_EQ(flags, expectedFlags);
+                                const std::string where =
+                                    "strides " + std::to_string(in.positionStride) + "/" +
+                                    std::to_string(in.normalStride) + "/" + std::to_string(in.directionStride) +
+                                    " mode " + std::to_string(mode) + " shade " + std::to_string(shade) +
+                                    " pixel " + std::to_string(pixel) + "/" + std::to_string(stride);
+                                for (size_t i = 0; i < count; ++i) {
+                                    const uint8_t* px = &pixels[i * stride];
+                                    for (int c = 0; c < out.channels; ++c) {
+                                        const float v = c < 3 ? expected[3 * i + size_t(c)] : 1.0f;
+                                        if (out.half) {
+                                            uint16_t h;
+                                            std::memcpy(&h, px + 2 * c, 2);
+                                            ASSERT_EQ(h, format::floatToHalf(v))
+                                                << where << " point " << i << " channel " << c;
+                                        } else {
+                                            ASSERT_EQ(std::memcmp(px + 4 * c, &v, 4), 0)
+                                                << where << " point " << i << " channel " << c;
+                                        }
+                                    }
+                                    const size_t gap = i + 1 < count ? stride - pixel : 8;
+                                    for (size_t b = 0; b < gap; ++b)
+                                        ASSERT_EQ(px[pixel + b], 0x5A) << where << ": wrote past pixel " << i;
+                                }
                             }
                         }
                     }
-                }
+            }
+        }
+        if (kernel != NRAD_KERNEL_SCALAR) {
+            EXPECT_GT(rt::gbufferBlocksSoFar(), before) << "the vector path was not taken";
+            EXPECT_GT(rt::treeBlocksSoFar(), treeBefore) << "no tree vector was located in registers";
         }
     }
-    if (nradActiveKernel() != NRAD_KERNEL_SCALAR) {
-        EXPECT_GT(rt::gbufferBlocksSoFar(), before) << "the vector path was not taken";
-        EXPECT_GT(rt::treeBlocksSoFar(), treeBefore) << "no tree vector was located in registers";
-    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
 }
 
 TEST(GBuffer, ZeroOrNonFiniteVectorsAreInvalidInputs) {

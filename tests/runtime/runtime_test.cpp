@@ -492,6 +492,84 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
     }
 }
 
+// Long runs in one cell, as a rendered surface gives them: consecutive vectors share their network, which the
+// kernels with 32 vector registers evaluate two at a time (evalNetworkPair); runs that end inside a pair of
+// vectors (a pair over two networks), bad points among them, an odd number of vectors and a partial last one;
+// on a fully occupied blended grid, vectors in one voxel reaching into bands on every side (evalBlended over up
+// to 27 voxels). Every kernel's batch must give each point its bits through a single-point call, grids (blended
+// or not) and kd-trees alike; a pair evaluated in any other order, or a blended term dropped, fails here.
+TEST(Runtime, PairsOfVectorsInOneCellMatchSinglePoints) {
+    format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 31,
+                                     glm::uvec3(3, 4, 2), 0.0f);
+    format::Asset blended = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 32,
+                                        glm::uvec3(4, 4, 4), 0.125f);
+    format::Asset tree = blended;
+    {  // every voxel occupied (randomAsset fills every other one), so that a run's vectors blend up to 27 networks
+        const size_t per = blended.topology.parameterCount(), had = blended.voxels.size();
+        std::vector<float> weights;
+        blended.voxels.clear();
+        for (uint32_t v = 0; v < blended.grid.voxelCount(); ++v) {
+            blended.voxels.push_back({v, 0.5f + 0.01f * float(v)});
+            const float* w = tree.weights.data() + (v % had) * per;
+            weights.insert(weights.end(), w, w + per);
+        }
+        blended.weights = weights;
+    }
+    const std::vector<format::TreeBox> boxes = test::makeRandomTreeAsset(tree, 8, 20, 4, 5, 3);
+    ASSERT_FALSE(boxes.empty());
+    for (const format::Asset* source : {&grid, &blended, &tree}) {
+        SCOPED_TRACE(source == &grid ? "grid" : source == &blended ? "blended grid" : "kd-tree");
+        const std::vector<uint8_t> bytes = format::encode(*source);
+        nrad::Asset asset;
+        ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+        const format::Grid& g = source->grid;
+        std::mt19937 rng(13);
+        std::uniform_real_distribution<float> u(0.0f, 1.0f), s(-1.0f, 1.0f);
+        Points pts;
+        while (pts.p.size() < 3 * 5000) {
+            // A run of 16 m + r points in one cell: the middle of a tree's leaf box or an unblended voxel; a whole
+            // blended voxel, so that its vectors reach into bands on every side (boxes of up to 27 voxels).
+            const int run = 16 * int(1 + rng() % 6) + int(rng() % 3 == 0 ? rng() % 16 : 0);
+            uint32_t lo[3], hi[3];
+            if (source == &tree) {
+                const format::TreeBox& box = boxes[rng() % boxes.size()];
+                for (int k = 0; k < 3; ++k) lo[k] = box.lo[k], hi[k] = box.hi[k];
+            } else {
+                for (int k = 0; k < 3; ++k) lo[k] = uint32_t(rng() % g.dims[k]), hi[k] = lo[k] + 1;
+            }
+            for (int i = 0; i < run; ++i) {
+                for (int k = 0; k < 3; ++k) {
+                    const float f = source == &blended ? u(rng) : 0.2f + 0.6f * u(rng);
+                    const float lattice = float(lo[k]) + f * float(hi[k] - lo[k]);
+                    const float size = (g.upper[k] - g.lower[k]) / float(g.dims[k]);
+                    pts.p.push_back(g.lower[k] + size * lattice);
+                    pts.n.push_back(s(rng));
+                    pts.d.push_back(s(rng));
+                }
+                if (rng() % 211 == 0) pts.d[pts.d.size() - 1] = std::numeric_limits<float>::infinity();
+            }
+        }
+        const size_t n = pts.p.size() / 3 - 5;  // a partial last vector
+        const uint64_t blendedBefore = rt::blendedBlocksSoFar();
+        for (NradKernel k : kernels()) {
+            ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
+            std::vector<float> batch(3 * n), single(3 * n);
+            std::vector<uint8_t> flags(n);
+            ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), batch.data(), flags.data()), NRAD_OK);
+            for (size_t i = 0; i < n; ++i) {
+                uint32_t flag = 0;
+                ASSERT_EQ(nradEvaluate(asset.get(), &pts.p[3 * i], &pts.n[3 * i], &pts.d[3 * i], &single[3 * i], &flag), NRAD_OK);
+                ASSERT_EQ(uint32_t(flags[i]), flag) << "kernel " << k << " point " << i;
+                ASSERT_EQ(std::memcmp(&batch[3 * i], &single[3 * i], 12), 0) << "kernel " << k << " point " << i;
+            }
+        }
+        if (source == &blended && kernels().size() > 1) {
+            EXPECT_GT(rt::blendedBlocksSoFar(), blendedBefore) << "no vector was blended in registers";
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
 // The shading contract's own 2^x (the reflectance fit's exp2(-9.28 n.wo), the same bits in every kernel):
 // within 3e-7 of the C library's over its whole range, exact at integers, clamped at +-125, NaN to 2^-125.
 TEST(Runtime, TheContractsExp2IsAccurateAndClamped) {
