@@ -27,6 +27,7 @@ struct ValidateOptions {
     std::string scene, asset, output, bakeStats, cacheDir, reference;
     int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 6, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
     uint32_t seed = 0;
+    uint32_t baselinePointsPerProbe = kBaselinePointsPerProbe, baselinePathsPerProbe = kBaselinePathsPerProbe;
     float exposure = 0.0f;
     bool noCache = false, noBaseline = false, quiet = false, force = false;
     LightingOptions lighting;
@@ -92,6 +93,8 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     s.seed = o.seed;
     s.exposure = o.exposure;
     s.baseline = !o.noBaseline;
+    s.baselinePointsPerProbe = o.baselinePointsPerProbe;
+    s.baselinePathsPerProbe = o.baselinePathsPerProbe;
     s.referenceImage = o.reference;
     s.cacheDir = o.noCache ? std::string() : (o.cacheDir.empty() ? defaultCacheDir(o.output) : o.cacheDir);
     ValidationResult r;
@@ -191,6 +194,13 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_option("--cache-dir", o->cacheDir, "Reference cache (default $XDG_CACHE_HOME/nrad or ~/.cache/nrad)");
     cmd->add_flag("--no-cache", o->noCache, "Neither read nor write the reference cache");
     cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
+    cmd->add_option("--baseline-points-per-probe", o->baselinePointsPerProbe,
+                    "The SH baseline's training points: the bake's first max(" + std::to_string(kBaselineMinPoints) +
+                        ", this x probes); 0 = all of the bake's (default " + std::to_string(kBaselinePointsPerProbe) + ")");
+    cmd->add_option("--baseline-paths-per-probe", o->baselinePathsPerProbe,
+                    "The SH baseline's traced paths: at most max(" + std::to_string(kBaselineMinPaths) +
+                        ", this x probes), fewer paths per point first; 0 = the bake's paths per point (default " +
+                        std::to_string(kBaselinePathsPerProbe) + ")");
     cmd->add_option("--exposure", o->exposure, "Exposure in stops for PNGs and PSNR")->check(finiteRange(-64.0, 64.0));
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all")->check(CLI::Range(0, 4096));
     addLightingOptions(cmd, o->lighting);

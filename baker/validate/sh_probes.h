@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -38,9 +39,14 @@ struct ShFitStats {
 };
 
 // Least squares: minimise sum_s |L_grid(x_s, wo_s) - L_s|^2 + ridge * trace(A^T A) / K * |c|^2 by conjugate
-// gradients on the normal equations (K unknowns per channel); the ridge keeps probes that no sample
-// reaches at zero. Coefficients are then rounded to fp16. Deterministic.
+// gradients on the normal equations (K unknowns per channel, the three channels side by side), preconditioned
+// by each probe's 9 x 9 block of them (block Jacobi); the ridge keeps probes that no sample reaches at zero.
+// A channel stops at a relative residual of 1e-7, or once the objective falls by less than 1e-3 of itself
+// over 10 iterations (sh_probes.cpp: what that leaves is invisible in the image). Coefficients are then
+// rounded to fp16. Runs in parallel (TBB), every sum in a fixed order: the same bytes whatever the number of
+// threads. `progress` gets the fraction done (the slowest channel's way to its stop, log scale), rising.
 ShProbeGrid fitShProbeGrid(const std::vector<TrainingSample>& samples, const glm::vec3& lower, const glm::vec3& upper,
-                           const glm::uvec3& dims, ShFitStats* stats = nullptr, double ridge = 1e-4);
+                           const glm::uvec3& dims, ShFitStats* stats = nullptr, double ridge = 1e-4,
+                           const std::function<void(double)>& progress = {});
 
 }  // namespace nrad

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <stdexcept>
 
 #include "baker/bake/baker.h"
@@ -224,8 +225,84 @@ void equalError(MethodResult& m, const std::vector<CurvePoint>& curve) {
 
 }  // namespace
 
+namespace {
+
+template <class T>
+void fnvAll(uint64_t& h, const std::vector<T>& v) {
+    const uint64_t count = v.size();
+    fnv(h, &count, sizeof count);
+    if (!v.empty()) fnv(h, v.data(), v.size() * sizeof(T));
+}
+
+void fnvTextureRef(uint64_t& h, const TextureRef& t) {
+    const int i[] = {t.texture, t.texCoord};
+    const float f[] = {t.offset.x, t.offset.y, t.rotation, t.scale.x, t.scale.y};
+    fnv(h, i, sizeof i);
+    fnv(h, f, sizeof f);
+}
+
+}  // namespace
+
+uint64_t referenceSceneHash(const Scene& scene) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    const TriangleMesh& m = scene.mesh;
+    fnvAll(h, m.positions);
+    fnvAll(h, m.normals);
+    fnvAll(h, m.uv0);
+    fnvAll(h, m.uv1);
+    fnvAll(h, m.colors);
+    fnvAll(h, m.tangents);
+    fnvAll(h, m.triangles);
+    fnvAll(h, m.materialIds);
+    const uint64_t materials = scene.materials.size();
+    fnv(h, &materials, sizeof materials);
+    for (const Material& mat : scene.materials) {  // everything but the name
+        const float f[] = {mat.baseColor.x, mat.baseColor.y, mat.baseColor.z, mat.metallic, mat.roughness, mat.emission.x,
+                           mat.emission.y, mat.emission.z, mat.specular, mat.specularColor.x, mat.specularColor.y, mat.specularColor.z,
+                           mat.ior, float(mat.doubleSided), mat.transmission, mat.normalScale, float(int(mat.alphaMode)), mat.alpha,
+                           mat.alphaCutoff};
+        fnv(h, f, sizeof f);
+        for (const TextureRef* t : {&mat.baseColorTexture, &mat.metallicRoughnessTexture, &mat.emissiveTexture,
+                                    &mat.transmissionTexture, &mat.normalTexture})
+            fnvTextureRef(h, *t);
+    }
+    const uint64_t textures = scene.textures.size();
+    fnv(h, &textures, sizeof textures);
+    for (const Texture& t : scene.textures) {
+        const int i[] = {t.width, t.height, int(t.wrapS), int(t.wrapT)};
+        fnv(h, i, sizeof i);
+        if (t.bytes.empty()) {
+            const uint64_t count = t.texels.size();
+            fnv(h, &count, sizeof count);
+            if (count > 0) fnv(h, t.texels.data(), t.texels.size() * sizeof t.texels[0]);
+        } else {  // the bytes and the tables that decode them (sRGB or linear)
+            const uint64_t count = t.bytes.size();
+            fnv(h, &count, sizeof count);
+            fnv(h, t.bytes.data(), t.bytes.size());
+            if (t.colour) fnv(h, t.colour, 256 * sizeof(float));
+            if (t.alpha) fnv(h, t.alpha, 256 * sizeof(float));
+        }
+    }
+    const uint64_t lights = scene.lights.size();
+    fnv(h, &lights, sizeof lights);
+    for (const PunctualLight& l : scene.lights) {  // not runtimeDirect: the reference draws every light whole
+        const float f[] = {float(int(l.type)), l.position.x, l.position.y, l.position.z, l.direction.x, l.direction.y, l.direction.z,
+                           l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone, l.cosAngularRadius};
+        fnv(h, f, sizeof f);
+    }
+    const Environment& e = scene.environment;
+    const int active = e.active() ? 1 : 0;
+    fnv(h, &active, sizeof active);
+    if (active) {
+        const float f[] = {float(int(e.kind)), e.color.x, e.color.y, e.color.z, e.intensity, e.rotationDegrees, float(e.width), float(e.height)};
+        fnv(h, f, sizeof f);
+        fnvAll(h, e.texels);
+    }
+    return h;
+}
+
 std::string referenceKey(const Scene& scene, const ValidateSettings& s, int width, int height) {
-    uint64_t h = sceneHash(scene);
+    uint64_t h = referenceSceneHash(scene);
     const Camera& c = s.camera;
     int type = int(c.type);
     fnv(h, &type, sizeof type);
@@ -235,7 +312,9 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     fnv(h, f, sizeof f);
     int v[] = {width, height, s.referenceSpp, s.maxDepth, int(s.seed)};
     fnv(h, v, sizeof v);
-    const char version[] = "nrad path tracer 3";  // bump when the renderer's output changes (2: issue 12; 3: issue 14)
+    // Bump when the renderer's output changes (2: issue 12; 3: issue 14); "key 2" (issue 37): the scene's part
+    // became referenceSceneHash, and near-mirror GGX and soft suns changed glossy and sunlit images.
+    const char version[] = "nrad path tracer 3, key 2";
     fnv(h, version, sizeof version);
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
@@ -448,25 +527,74 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         } else {
             r.baselineSamplesNote = "default bake settings (the asset has no metadata)";
         }
+        // The probes first: the training budget follows their count.
+        const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+        const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+        r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
+        const uint64_t probeCount = uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z;
+        if (settings.baselinePointsPerProbe > 0) {
+            const uint64_t budget = std::max<uint64_t>(settings.baselineMinPoints, uint64_t(settings.baselinePointsPerProbe) * probeCount);
+            if (uint64_t(ss.points) > budget) {
+                // The first points of the same sequence: a subset of the very points the networks learnt from.
+                ss.points = uint32_t(budget);
+                r.baselineSamplesNote += "; its first " + std::to_string(ss.points) + " points (at most max(" +
+                                         std::to_string(settings.baselineMinPoints) + ", " + std::to_string(settings.baselinePointsPerProbe) +
+                                         " per probe))";
+            }
+        }
+        if (settings.baselinePathsPerProbe > 0 && ss.points > 0) {
+            const uint64_t budget = std::max<uint64_t>(settings.baselineMinPaths, uint64_t(settings.baselinePathsPerProbe) * probeCount);
+            const uint32_t paths = uint32_t(std::clamp<uint64_t>(budget / ss.points, 1, ss.paths));
+            if (paths < ss.paths) {
+                // The same points, each with fewer paths: least squares averages the noise over a probe's points.
+                r.baselineSamplesNote += "; " + std::to_string(paths) + " paths a point, not " + std::to_string(ss.paths) + " (at most max(" +
+                                         std::to_string(settings.baselineMinPaths) + ", " + std::to_string(settings.baselinePathsPerProbe) +
+                                         " per probe) paths)";
+                ss.paths = paths;
+            }
+        }
         VoxelGrid grid(scene.bounds, dims);
         SurfacePieces pieces(scene.mesh, grid);
         SampleStats sst;
-        say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths)");
+        say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths, for " +
+            std::to_string(probeCount) + " probes)");
+        // Progress lines at every tenth, with the time since the baseline began (the sampler calls from its
+        // worker threads).
+        std::mutex progressMutex;
+        auto tenths = [&](const char* what) {
+            return [&, what, last = 0](double fraction) mutable {
+                std::lock_guard<std::mutex> lock(progressMutex);
+                const int tenth = std::min(10, int(fraction * 10.0 + 1e-9));
+                if (tenth <= last) return;
+                last = tenth;
+                char line[120];
+                std::snprintf(line, sizeof line, "baseline: %s %d%% (%.1f s)", what, 10 * tenth, since(t0));
+                say(line);
+            };
+        };
         // Trained like the asset's networks: without the direct light of lights the engine draws.
         PathTracer baselineTracer(scene, accel, lights);
         baselineTracer.setExcludeEngineDrawnDirect(true);
         baselineTracer.setRouletteThreshold(kTrainingRouletteThreshold);
-        std::vector<TrainingSample> samples = generateTrainingSamples(scene, baselineTracer, grid, pieces, ss, sst);
+        std::vector<TrainingSample> samples =
+            generateTrainingSamples(scene, baselineTracer, grid, pieces, ss, sst, std::function<void(double)>(tenths("sampling")));
+        const double samplingSeconds = since(t0);
         // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
         // probes store lighting and multiply by the albedo), so both are shaded alike.
         if (info.contentFlags & NRAD_CONTENT_DEMODULATED)
             for (TrainingSample& t : samples) t.radiance /= demodulationDivisor(t);
         r.baselineTrainingSamples = samples.size();
-        glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
-        glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
-        r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
-        ShProbeGrid probes = fitShProbeGrid(samples, lower, upper, r.baselineProbes, &r.baselineFit);
+        say("baseline: fitting " + std::to_string(r.baselineProbes.x) + "x" + std::to_string(r.baselineProbes.y) + "x" +
+            std::to_string(r.baselineProbes.z) + " probes to " + std::to_string(samples.size()) + " samples");
+        ShProbeGrid probes = fitShProbeGrid(samples, lower, upper, r.baselineProbes, &r.baselineFit, 1e-4,
+                                            std::function<void(double)>(tenths("fit")));
         r.baselineSeconds = since(t0);
+        {
+            char line[160];
+            std::snprintf(line, sizeof line, "baseline: %.1f s (sampling %.1f s, fit %.1f s, %d CG iterations)", r.baselineSeconds,
+                          samplingSeconds, r.baselineSeconds - samplingSeconds, r.baselineFit.iterations);
+            say(line);
+        }
         FirstHitEvaluator evaluate = [&probes](size_t n, const float* p, const float* /*normals*/, const float* d, float* rgb,
                                                uint8_t* flags) {
             for (size_t i = 0; i < n; ++i) {

@@ -21,6 +21,22 @@
 
 namespace nrad {
 
+// The SH baseline's training budget (issue 37: re-tracing every sample of a large bake took 97% of its
+// validation): at most max(kBaselineMinPoints, kBaselinePointsPerProbe x probes) of the bake's points (the
+// first of its sequence), and at most max(kBaselineMinPaths, kBaselinePathsPerProbe x probes) paths in all,
+// fewer paths per point first. Each is the smallest budget whose probes are as good as with every sample of
+// the bake (image relMSE; one set of samples varies by about 8%): the Cornell box (100 probes, 1,543 samples
+// each in the bake) needs 400 per probe (+36% at 100, +2.7% at 300, -0.6% at 400, +1.4% at 1,200, means over
+// 8 sample sets), hence the floor of 40,000 points with its 32 paths (2^21 paths); zdm2 under a 1 MB budget
+// (18,792 probes, 208 samples each, sun and sky), seen from outside (the default camera) / from above into the
+// level (docs/usage.md): every sample 0.05706 / 0.5497; 25 points per probe with 32 paths 0.05621 / 0.5713,
+// 8 paths 0.0548 / 0.5604, 4 paths 0.05467 / 0.5973, 2 paths 0.0616 / -; 50 per probe with 4 paths 0.05676 /
+// 0.5424; 12 per probe with 18 paths 0.06148, 10 with 32 0.06798. docs/usage.md ("Baseline") has the times.
+constexpr uint32_t kBaselinePointsPerProbe = 25;
+constexpr uint32_t kBaselineMinPoints = 40000;
+constexpr uint32_t kBaselinePathsPerProbe = 200;
+constexpr uint64_t kBaselineMinPaths = uint64_t(1) << 21;
+
 struct ValidateSettings {
     int width = 512, height = 0;  // height 0: from the width and the camera's aspect ratio
     Camera camera;
@@ -32,6 +48,14 @@ struct ValidateSettings {
     std::string cacheDir;  // reference cache; empty: no cache
     std::string referenceImage;  // use this EXR as the reference instead of rendering one
     bool baseline = true;  // fit and render the SH-probe baseline
+    // The baseline's training budget (kBaselinePointsPerProbe says why): at most max(baselineMinPoints,
+    // baselinePointsPerProbe x probes) of the bake's points, the first of its sequence (0 per probe: all), and
+    // at most max(baselineMinPaths, baselinePathsPerProbe x probes) paths in all, fewer paths per point first
+    // (at least 1; 0 per probe: the bake's paths per point).
+    uint32_t baselinePointsPerProbe = kBaselinePointsPerProbe;
+    uint32_t baselineMinPoints = kBaselineMinPoints;
+    uint32_t baselinePathsPerProbe = kBaselinePathsPerProbe;
+    uint64_t baselineMinPaths = kBaselineMinPaths;
     float exposure = 0.0f;  // for PSNR and PNGs
 };
 
@@ -127,8 +151,15 @@ struct ValidationResult {
     SeamFigure seams;
 };
 
-// Key of a reference render: the scene as imported (sceneHash), the camera, the image size, spp, path
-// length and seed, and the renderer's version. 16 hex digits.
+// What of an imported scene a reference render depends on, hashed: the whole mesh (positions, normals, UVs,
+// colours, tangents, triangles, material ids), every material field but the name, the textures (texels,
+// decoding, wrap modes), the lights and the active environment. Not the lights' runtimeDirect (the reference
+// draws every light whole: mixed lighting changes what an asset holds, not the image it is compared with)
+// nor names.
+uint64_t referenceSceneHash(const Scene& scene);
+// Key of a reference render: referenceSceneHash, the camera, the image size, spp, path length and seed, and
+// the renderer's version; nothing else (not the asset, its lighting split, the neural spp, the curve or the
+// exposure). 16 hex digits.
 std::string referenceKey(const Scene& scene, const ValidateSettings& s, int width, int height);
 
 // Runs the whole validation. `log` receives one line per step (may be empty). Throws std::runtime_error

@@ -207,7 +207,16 @@ TEST(CliBake, IntegralTrainingWritesItsRoundsAndStats) {
     std::ifstream rj(dir + "/report/report.json");
     nlohmann::json report = nlohmann::json::parse(rj);
     EXPECT_NE(report["baseline"]["training_settings"].get<std::string>().find("integral equation"), std::string::npos);
-    EXPECT_GE(report["baseline"]["training_samples"].get<size_t>(), 150000u);  // 160,000 less the hidden
+    // Of those 160,000 points, the first max(40,000, 25 per probe) (kBaselineMinPoints, kBaselinePointsPerProbe),
+    // less the hidden ones; the paths per point stay (40,000 x 32 is within the paths' floor of 2^21).
+    const nlohmann::json& probes = report["baseline"]["probes"];
+    const size_t cap = std::max<size_t>(40000u, 25u * probes[0].get<size_t>() * probes[1].get<size_t>() * probes[2].get<size_t>());
+    ASSERT_LT(cap, 160000u);
+    EXPECT_GE(report["baseline"]["training_samples"].get<size_t>(), cap * 9 / 10);
+    EXPECT_LE(report["baseline"]["training_samples"].get<size_t>(), cap);
+    EXPECT_NE(report["baseline"]["training_settings"].get<std::string>().find("its first 40000 points"), std::string::npos)
+        << report["baseline"]["training_settings"];
+    EXPECT_EQ(report["baseline"]["training_settings"].get<std::string>().find("paths a point"), std::string::npos);
 }
 
 TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {

@@ -1,6 +1,7 @@
 // Validation building blocks against closed forms: image metrics, the SH basis and probe fit, the
 // equal-error interpolation, the bake curve aggregation and the SVG plot.
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -10,6 +11,9 @@
 #include "baker/validate/sh_probes.h"
 #include "baker/validate/validate.h"
 #include "baker/bake/voxel_grid.h"
+#include "baker/scene/gltf_loader.h"
+#include "baker/util/threads.h"
+#include "support/test_paths.h"
 #include "support/test_scenes.h"
 
 namespace nrad {
@@ -209,6 +213,213 @@ TEST(ShProbes, FitRecoversAnExactProbeField) {
     EXPECT_LT(st.relativeResidual, 1e-6);
     for (size_t i = 0; i < truth.coeffs.size(); ++i) EXPECT_NEAR(fit.coeffs[i], truth.coeffs[i], 8e-3f) << i;  // fp16 rounding
     EXPECT_LT(st.trainRelMse, 1e-5);
+}
+
+// Random samples of a smooth field over a lattice of many probes (several blocks of the fit's sums).
+std::vector<TrainingSample> randomFieldSamples(const glm::vec3& lower, const glm::vec3& upper, size_t count, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), u01(0.0f, 1.0f);
+    std::vector<TrainingSample> samples(count);
+    for (TrainingSample& s : samples) {
+        for (int k = 0; k < 3; ++k) s.position[k] = lower[k] + u01(rng) * (upper[k] - lower[k]);
+        s.wo = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+        s.normal = s.wo;
+        const float shade = 1.0f + 0.5f * std::sin(s.position.x) * std::cos(2.0f * s.position.y) + 0.3f * s.wo.z;
+        s.radiance = glm::vec3(shade, 0.5f * shade + 0.1f * u01(rng), 2.0f * u01(rng));
+        s.voxel = 0;
+    }
+    return samples;
+}
+
+TEST(ShProbes, FitIsTheSameForAnyThreadCountAndReportsRisingProgress) {
+    const glm::vec3 lower(-3, 0, 1), upper(5, 4, 6);
+    const glm::uvec3 dims(10, 8, 7);  // 560 probes, 15,120 unknowns
+    const std::vector<TrainingSample> samples = randomFieldSamples(lower, upper, 12000, 5);
+    ShFitStats one, many;
+    ShProbeGrid a, b;
+    std::vector<double> fractions;
+    {
+        ThreadScope scope(1);
+        a = fitShProbeGrid(samples, lower, upper, dims, &one);
+    }
+    {
+        ThreadScope scope(4);
+        b = fitShProbeGrid(samples, lower, upper, dims, &many, 1e-4, [&](double f) { fractions.push_back(f); });
+    }
+    ASSERT_EQ(a.coeffs.size(), b.coeffs.size());
+    EXPECT_EQ(std::memcmp(a.coeffs.data(), b.coeffs.data(), a.coeffs.size() * sizeof(float)), 0);
+    EXPECT_EQ(one.iterations, many.iterations);
+    EXPECT_EQ(one.relativeResidual, many.relativeResidual);
+    EXPECT_EQ(one.trainRelMse, many.trainRelMse);
+    EXPECT_GT(one.iterations, 1) << one.iterations;
+    EXPECT_LT(one.relativeResidual, 1e-2);  // stopped by the residual or by the objective's stall
+    ASSERT_FALSE(fractions.empty());
+    for (size_t i = 1; i < fractions.size(); ++i) EXPECT_GT(fractions[i], fractions[i - 1]);
+    EXPECT_GT(fractions.front(), 0.0);
+    EXPECT_EQ(fractions.back(), 1.0);
+    // No samples: every coefficient zero.
+    ShFitStats none;
+    ShProbeGrid empty = fitShProbeGrid({}, lower, upper, dims, &none);
+    for (float c : empty.coeffs) EXPECT_EQ(c, 0.0f);
+    EXPECT_EQ(none.iterations, 0);
+}
+
+TEST(Validate, ReferenceKeyFollowsWhatTheImageDependsOn) {
+    // The lit plane under a sun and a sky. Whether the engine draws the sun (--runtime-direct) changes what an
+    // asset holds, not the path-traced reference: the key stays. Everything the image depends on moves it.
+    Scene scene = test::makeLitPlane(0.5f, 1.0f);
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.name = "sun";
+    sun.direction = glm::normalize(glm::vec3(-0.3f, -0.2f, -1.0f));
+    sun.intensity = glm::vec3(3.0f);
+    scene.lights.push_back(sun);
+    scene.environment.kind = Environment::Kind::Constant;
+    scene.environment.color = glm::vec3(0.5f);
+    Texture checker;  // a base colour texture, so that texture coordinates and transforms matter
+    checker.width = 2;
+    checker.height = 1;
+    checker.texels.push_back(glm::vec4(0.2f, 0.3f, 0.4f, 1.0f));
+    checker.texels.push_back(glm::vec4(0.9f, 0.8f, 0.7f, 1.0f));
+    scene.textures.push_back(checker);
+    scene.materials[0].baseColorTexture.texture = 0;
+    ValidateSettings s;
+    s.camera = scene.cameras[0];
+    const std::string key = referenceKey(scene, s, 64, 48);
+    EXPECT_EQ(key.size(), 16u);
+    EXPECT_EQ(referenceKey(scene, s, 64, 48), key);
+    {
+        Scene mixed = scene;
+        mixed.lights[0].runtimeDirect = true;
+        EXPECT_EQ(referenceKey(mixed, s, 64, 48), key);
+        EXPECT_NE(sceneHash(mixed), sceneHash(scene));  // the asset's scene check does tell them apart
+        mixed.lights[0].name = "renamed";
+        EXPECT_EQ(referenceKey(mixed, s, 64, 48), key);
+    }
+    {  // settings of the validation that the reference does not use
+        ValidateSettings t = s;
+        t.neuralSpp = 16;
+        t.curveMaxSpp = 8;
+        t.exposure = 2.0f;
+        t.baseline = false;
+        t.baselinePointsPerProbe = 7;
+        t.baselinePathsPerProbe = 3;
+        t.cacheDir = "/elsewhere";
+        EXPECT_EQ(referenceKey(scene, t, 64, 48), key);
+    }
+    std::vector<std::pair<std::string, std::string>> others;
+    auto withSettings = [&](const std::string& what, auto change) {
+        ValidateSettings t = s;
+        change(t);
+        others.push_back({what, referenceKey(scene, t, 64, 48)});
+    };
+    withSettings("spp", [](ValidateSettings& t) { t.referenceSpp = 1024; });
+    withSettings("seed", [](ValidateSettings& t) { t.seed = 1; });
+    withSettings("max depth", [](ValidateSettings& t) { t.maxDepth = 0; });
+    withSettings("camera position", [](ValidateSettings& t) { t.camera.position.x += 0.25f; });
+    withSettings("camera orientation", [](ValidateSettings& t) { t.camera.worldFromCamera[0][1] = 0.01f; });
+    withSettings("camera size", [](ValidateSettings& t) { t.camera.ymag = 2.0f; });
+    withSettings("camera type", [](ValidateSettings& t) { t.camera.type = Camera::Type::Perspective; });
+    others.push_back({"width", referenceKey(scene, s, 65, 48)});
+    others.push_back({"height", referenceKey(scene, s, 64, 49)});
+    auto withScene = [&](const std::string& what, auto change) {
+        Scene t = scene;
+        change(t);
+        others.push_back({what, referenceKey(t, s, 64, 48)});
+    };
+    withScene("sun intensity", [](Scene& t) { t.lights[0].intensity = glm::vec3(4.0f); });
+    withScene("sun direction", [](Scene& t) { t.lights[0].direction = glm::vec3(0, 0, -1); });
+    withScene("sun angle", [](Scene& t) { t.lights[0].cosAngularRadius = 0.9999f; });
+    withScene("no sun", [](Scene& t) { t.lights.clear(); });
+    withScene("sky colour", [](Scene& t) { t.environment.color = glm::vec3(0.6f); });
+    withScene("sky intensity", [](Scene& t) { t.environment.intensity = 2.0f; });
+    withScene("no sky", [](Scene& t) { t.environment.kind = Environment::Kind::None; });
+    withScene("albedo", [](Scene& t) { t.materials[0].baseColor = glm::vec3(0.6f); });
+    withScene("alpha cutoff", [](Scene& t) { t.materials[0].alphaCutoff = 0.25f; });
+    withScene("transmission", [](Scene& t) { t.materials[0].transmission = 0.5f; });
+    withScene("texture transform", [](Scene& t) { t.materials[0].baseColorTexture.scale = glm::vec2(2.0f); });
+    withScene("uv", [](Scene& t) { t.mesh.uv0[1] = glm::vec2(1.0f, 0.0f); });
+    withScene("texel", [](Scene& t) { t.textures[0].texels[1].x = 0.5f; });
+    withScene("wrap mode", [](Scene& t) { t.textures[0].wrapS = WrapMode::ClampToEdge; });
+    withScene("position", [](Scene& t) { t.mesh.positions[0].z = 0.01f; });
+    for (size_t i = 0; i < others.size(); ++i) {
+        EXPECT_NE(others[i].second, key) << others[i].first;
+        for (size_t j = 0; j < i; ++j) EXPECT_NE(others[i].second, others[j].second) << others[i].first << " / " << others[j].first;
+    }
+}
+
+TEST(Validate, BaselineTrainsOnABudgetPerProbeTheSameForAnyThreads) {
+    // A small Cornell box bake; its baseline regenerates the bake's samples, the first `perProbe` x probes of
+    // its points (plus the sampling floor), and is byte-identical for one thread and several.
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    BakeSettings b;
+    b.grid = glm::uvec3(2);
+    b.samples.points = 20000;
+    b.samples.paths = 2;
+    b.train.epochs = 20;
+    b.train.patience = 20;
+    const std::vector<uint8_t> bytes = test::bakeBytes(scene, b, 2);
+    NradAsset asset = nullptr;
+    ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
+    ValidateSettings s;
+    s.camera = scene.cameras[0];
+    s.width = 24;
+    s.referenceSpp = 2;
+    s.curveMaxSpp = 1;
+    s.neuralSpp = 1;
+    s.baselinePointsPerProbe = 20;
+    s.baselineMinPoints = 0;
+    std::vector<std::string> lines;
+    ValidationResult one, many, all, floored, fewerPaths;
+    {
+        ThreadScope scope(1);
+        one = runValidation(scene, "", asset, "", s, [&](const std::string& line) { lines.push_back(line); });
+    }
+    {
+        ThreadScope scope(3);
+        many = runValidation(scene, "", asset, "", s);
+        s.baselineMinPoints = 40000;  // the floor above the bake's points: every point
+        floored = runValidation(scene, "", asset, "", s);
+        s.baselineMinPoints = 0;
+        s.baselinePointsPerProbe = 0;  // the bake's every point
+        all = runValidation(scene, "", asset, "", s);
+        // Every point, but a paths' budget of one path a point: the bake's 2 are halved.
+        s.baselineMinPaths = 0;
+        s.baselinePathsPerProbe = uint32_t(all.baselineTrainingSamples * 3 / 2 /
+                                           (size_t(all.baselineProbes.x) * all.baselineProbes.y * all.baselineProbes.z));
+        fewerPaths = runValidation(scene, "", asset, "", s);
+    }
+    nradReleaseAsset(asset);
+    ASSERT_TRUE(one.baseline && many.baseline && all.baseline && floored.baseline && fewerPaths.baseline);
+    const size_t probes = size_t(one.baselineProbes.x) * one.baselineProbes.y * one.baselineProbes.z;
+    EXPECT_LT(20 * probes, 20000u);  // the budget is what limits
+    EXPECT_GT(one.baselineTrainingSamples, 20 * probes / 2);  // less the points no viewer sees
+    EXPECT_LE(one.baselineTrainingSamples, 20 * probes + 8 * 64);  // plus at most the floor of the 8 voxels
+    EXPECT_NE(one.baselineSamplesNote.find("20 per probe"), std::string::npos) << one.baselineSamplesNote;
+    EXPECT_EQ(one.baselineSamplesNote.find("paths a point"), std::string::npos) << one.baselineSamplesNote;  // within 2^21
+    EXPECT_GT(all.baselineTrainingSamples, 15000u);
+    EXPECT_EQ(all.baselineSamplesNote.find("per probe"), std::string::npos) << all.baselineSamplesNote;
+    EXPECT_EQ(floored.baselineTrainingSamples, all.baselineTrainingSamples);
+    EXPECT_EQ(floored.baselineSamplesNote.find("per probe"), std::string::npos) << floored.baselineSamplesNote;
+    EXPECT_NE(fewerPaths.baselineSamplesNote.find("1 paths a point, not 2"), std::string::npos) << fewerPaths.baselineSamplesNote;
+    // The same points (a point is dropped only when every path is non-finite, or hidden from every view),
+    // other targets.
+    EXPECT_NEAR(double(fewerPaths.baselineTrainingSamples), double(all.baselineTrainingSamples), 0.001 * all.baselineTrainingSamples);
+    EXPECT_NE(fewerPaths.baselineFit.trainRelMse, all.baselineFit.trainRelMse);
+    EXPECT_EQ(many.baselineTrainingSamples, one.baselineTrainingSamples);
+    EXPECT_EQ(many.baselineFit.iterations, one.baselineFit.iterations);
+    EXPECT_EQ(many.baselineFit.trainRelMse, one.baselineFit.trainRelMse);
+    const std::vector<glm::vec3>&p = one.baseline->image.pixels, &q = many.baseline->image.pixels;
+    ASSERT_EQ(p.size(), q.size());
+    EXPECT_EQ(std::memcmp(p.data(), q.data(), p.size() * sizeof(glm::vec3)), 0);
+    // Progress: the sampling and the fit each reach 100%.
+    auto said = [&](const std::string& what) {
+        for (const std::string& l : lines)
+            if (l.find(what) != std::string::npos) return true;
+        return false;
+    };
+    EXPECT_TRUE(said("baseline: sampling 100%"));
+    EXPECT_TRUE(said("baseline: fit 100%"));
 }
 
 TEST(ShProbes, BasisIsOrthonormalOnTheSphere) {
