@@ -43,6 +43,12 @@ std::string defaultCacheDir(const std::string& output) {
     return output + "-cache";
 }
 
+std::string fmtG(double v) {
+    char s[32];
+    std::snprintf(s, sizeof s, "%.3g", v);
+    return s;
+}
+
 int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     nlohmann::json bakeStats;
     if (!o.bakeStats.empty()) {
@@ -132,6 +138,16 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         for (size_t k = 0; k < n.byRegion.size(); ++k)
             std::printf("%s %s %.3g (%.1f%%)", k ? "," : "", kRegionNames[k], n.byRegion[k].relMse, 100.0 * n.byRegion[k].shareOfImage);
         std::printf("; seams: relMSE across shared faces %.3g at %zu points\n", r.seams.relMse, r.seams.points);
+        // What the eye sees: the light's shape and colour on the surfaces (the SH probes' in brackets).
+        const bool b = r.baseline.has_value();
+        const MethodResult* sh = b ? &*r.baseline : nullptr;
+        std::printf("  what the eye sees (%zu surface pixels): relMSE %.3g%s; %dx%d-pixel blocks (%zu): luminance error rms %.3g, "
+                    "worst %.3g%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
+                    "worst %.3g\n",
+                    n.surfaces.pixels, n.surfaces.relMse, b ? (" [" + fmtG(sh->surfaces.relMse) + "]").c_str() : "", n.blocks.blockSize,
+                    n.blocks.blockSize, n.blocks.blocks, n.blocks.rms, n.blocks.worst,
+                    b ? (" [" + fmtG(sh->blocks.rms) + ", " + fmtG(sh->blocks.worst) + "]").c_str() : "", n.blocks.tintRms,
+                    n.blocks.tintWorst, n.blocks.chroma, n.blocks.referenceChroma, n.steps.faces, n.steps.rms, n.steps.worst);
         // By material, largest neural share first (the five largest; report.json has them all).
         const std::vector<size_t> order = materialsByNeuralShare(r);
         if (!order.empty()) {

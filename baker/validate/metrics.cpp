@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <stdexcept>
 
 namespace nrad {
@@ -192,6 +193,112 @@ std::vector<DecadeError> relMseByDecade(const Image& image, const Image& referen
             out.push_back(d);
         }
     return out;
+}
+
+BlockFigure blockFigure(const Image& image, const Image& reference, const std::vector<uint8_t>& mask, int blockSize) {
+    requireSameSize(image, reference);
+    if (mask.size() != reference.pixels.size()) throw std::invalid_argument("mask size differs from the image's");
+    BlockFigure f;
+    f.blockSize = std::max(1, blockSize);
+    double maskedSum = 0.0;
+    size_t masked = 0;
+    for (size_t i = 0; i < mask.size(); ++i)
+        if (mask[i] && std::isfinite(luminance(reference.pixels[i]))) {
+            maskedSum += luminance(reference.pixels[i]);
+            ++masked;
+        }
+    if (masked == 0 || !(maskedSum > 0.0)) return f;
+    const double floor = 1e-3 * maskedSum / double(masked);
+    const int b = f.blockSize;
+    double sum2 = 0.0, tint2 = 0.0;
+    for (int by = 0; by + b <= reference.height; by += b)
+        for (int bx = 0; bx + b <= reference.width; bx += b) {
+            glm::dvec3 x(0.0), r(0.0);
+            bool whole = true;
+            for (int y = by; y < by + b && whole; ++y)
+                for (int xx = bx; xx < bx + b; ++xx) {
+                    const size_t i = size_t(y) * size_t(reference.width) + size_t(xx);
+                    if (!mask[i]) {
+                        whole = false;
+                        break;
+                    }
+                    // A non-finite pixel counts as black (it should never occur; compareImages counts it too).
+                    for (int c = 0; c < 3; ++c) {
+                        if (std::isfinite(image.pixels[i][c])) x[c] += image.pixels[i][c];
+                        if (std::isfinite(reference.pixels[i][c])) r[c] += reference.pixels[i][c];
+                    }
+                }
+            if (!whole) continue;
+            x /= double(b) * double(b);
+            r /= double(b) * double(b);
+            const double lr = 0.2126 * r.x + 0.7152 * r.y + 0.0722 * r.z, lx = 0.2126 * x.x + 0.7152 * x.y + 0.0722 * x.z;
+            if (!(lr >= floor) || !(lr > 0.0)) continue;
+            ++f.blocks;
+            const double e = (lx - lr) / lr;
+            sum2 += e * e;
+            f.worst = std::max(f.worst, std::abs(e));
+            const double mx = (x.x + x.y + x.z) / 3.0, mr = (r.x + r.y + r.z) / 3.0;
+            double tint = 0.0;
+            for (int c = 0; c < 3; ++c) tint = std::max(tint, std::abs((mx > 0.0 ? x[c] / mx : 1.0) - r[c] / mr));
+            tint2 += tint * tint;
+            f.tintWorst = std::max(f.tintWorst, tint);
+            if (mx > 0.0) f.chroma = std::max(f.chroma, (std::max({x.x, x.y, x.z}) - std::min({x.x, x.y, x.z})) / mx);
+            f.referenceChroma = std::max(f.referenceChroma, (std::max({r.x, r.y, r.z}) - std::min({r.x, r.y, r.z})) / mr);
+        }
+    if (f.blocks > 0) {
+        f.rms = std::sqrt(sum2 / double(f.blocks));
+        f.tintRms = std::sqrt(tint2 / double(f.blocks));
+    }
+    return f;
+}
+
+StepFigure stepFigure(const Image& image, const Image& reference, const std::vector<int64_t>& cell, const std::vector<uint8_t>& mask,
+                      int reach, size_t minPairs) {
+    requireSameSize(image, reference);
+    if (mask.size() != reference.pixels.size() || cell.size() != reference.pixels.size())
+        throw std::invalid_argument("mask or cell size differs from the image's");
+    reach = std::max(1, reach);
+    struct Group {
+        size_t pairs = 0;
+        double jump = 0.0, level = 0.0;  // summed (image jump - reference jump), summed mean luminance of the four
+    };
+    std::map<std::pair<int64_t, int64_t>, Group> groups;  // ordered: the same figure on every machine
+    const int w = reference.width, h = reference.height;
+    auto lum = [](const glm::vec3& c) {
+        const double l = luminance(c);
+        return std::isfinite(l) ? l : 0.0;
+    };
+    for (int axis = 0; axis < 2; ++axis) {
+        const int dx = axis == 0 ? 1 : 0, dy = axis == 0 ? 0 : 1;
+        for (int y = 0; y + dy < h; ++y)
+            for (int x = 0; x + dx < w; ++x) {
+                const size_t i = size_t(y) * size_t(w) + size_t(x), j = size_t(y + dy) * size_t(w) + size_t(x + dx);
+                if (cell[i] < 0 || cell[j] < 0 || cell[i] == cell[j]) continue;
+                // The pixels `reach` away on either side of the change, each still in its side's cell.
+                const int ax = x - dx * (reach - 1), ay = y - dy * (reach - 1), bx = x + dx * reach, by = y + dy * reach;
+                if (ax < 0 || ay < 0 || bx >= w || by >= h) continue;
+                const size_t a = size_t(ay) * size_t(w) + size_t(ax), b = size_t(by) * size_t(w) + size_t(bx);
+                if (!mask[a] || !mask[b] || cell[a] != cell[i] || cell[b] != cell[j]) continue;
+                const bool flip = cell[i] > cell[j];
+                Group& g = groups[flip ? std::make_pair(cell[j], cell[i]) : std::make_pair(cell[i], cell[j])];
+                const double d = (lum(image.pixels[a]) - lum(image.pixels[b])) - (lum(reference.pixels[a]) - lum(reference.pixels[b]));
+                g.jump += flip ? -d : d;
+                g.level += 0.25 * (lum(image.pixels[a]) + lum(image.pixels[b]) + lum(reference.pixels[a]) + lum(reference.pixels[b]));
+                ++g.pairs;
+            }
+    }
+    StepFigure f;
+    double sum2 = 0.0;
+    for (const auto& [key, g] : groups) {
+        if (g.pairs < minPairs || !(g.level > 0.0)) continue;
+        const double step = g.jump / g.level;  // (sum of differences / n) / (sum of levels / n)
+        ++f.faces;
+        f.pairs += g.pairs;
+        sum2 += step * step * double(g.pairs);
+        f.worst = std::max(f.worst, std::abs(step));
+    }
+    if (f.pairs > 0) f.rms = std::sqrt(sum2 / double(f.pairs));
+    return f;
 }
 
 }  // namespace nrad

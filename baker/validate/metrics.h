@@ -1,6 +1,7 @@
 // Image comparison: the error metrics of the validation report, and the images that show where the error is.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -57,5 +58,40 @@ struct RegionError {
 };
 std::vector<RegionError> relMseByRegion(const Image& image, const Image& reference, const std::vector<int>& region,
                                         int regionCount);
+
+// What the eye sees at the exposure a viewer adapts to (issue 38): errors of the light's shape and colour,
+// which a whole-image relMSE can call good while every block is off. `mask[i]` marks the pixels that count
+// (validate: those whose centre sees a surface that does not emit).
+//
+// Block figure: both images averaged over square blocks of `blockSize` pixels (validate: width / 16, 14
+// pixels at 224 wide: well above the reference's noise at its spp, well below a voxel's size on screen), over
+// the blocks whose every pixel is masked and whose reference luminance is at least 1e-3 of the masked mean.
+// Per block, the relative error of the mean luminance, and the tint: c = the block's mean RGB over the mean of
+// its channels, max over channels |c_image - c_reference| (0 for a grey image of a grey scene, (max - min) /
+// mean of a tinted block of a grey scene, roughly).
+struct BlockFigure {
+    int blockSize = 0;
+    size_t blocks = 0;
+    double rms = 0.0, worst = 0.0;  // of the luminance's relative error over the blocks
+    double tintRms = 0.0, tintWorst = 0.0;
+    // Largest (max - min) / mean of a block's mean RGB: the image's and the reference's (a grey scene's
+    // reference is 0 up to its noise).
+    double chroma = 0.0, referenceChroma = 0.0;
+};
+BlockFigure blockFigure(const Image& image, const Image& reference, const std::vector<uint8_t>& mask, int blockSize);
+
+// Steps where the image crosses the partition's cells (voxels or kd-tree leaves), as the image shows them:
+// for every pair of masked pixels `reach` pixels either side of a horizontal or vertical change of cell
+// (cell[i]: the cell the pixel's centre sees, < 0 none), the image's luminance jump across it less the
+// reference's jump at the same pixels (what the surface's own shading changes there cancels; the reference's
+// noise averages out over a face). Pairs are grouped by the pair of cells; a group's step is the mean of
+// those differences over the mean luminance of its pixels. Figures over the groups of at least `minPairs`
+// pairs: rms (weighted by pairs) and worst |step|.
+struct StepFigure {
+    size_t faces = 0, pairs = 0;  // groups counted and their pairs
+    double rms = 0.0, worst = 0.0;
+};
+StepFigure stepFigure(const Image& image, const Image& reference, const std::vector<int64_t>& cell, const std::vector<uint8_t>& mask,
+                      int reach = 2, size_t minPairs = 16);
 
 }  // namespace nrad

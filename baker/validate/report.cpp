@@ -56,6 +56,14 @@ nlohmann::json methodJson(const MethodResult& m) {
                                     {"median_relative_error", num(m.distribution.medianRelativeError)},
                                     {"p99_relative_error", num(m.distribution.p99RelativeError)}}},
             {"by_region", regions},
+            {"what_the_eye_sees",
+             {{"surface_pixels", m.surfaces.pixels},
+              {"surface_relmse", num(m.surfaces.relMse)},
+              {"blocks", {{"block_pixels", m.blocks.blockSize}, {"count", m.blocks.blocks}, {"relative_error_rms", num(m.blocks.rms)},
+                          {"relative_error_worst", num(m.blocks.worst)}, {"tint_rms", num(m.blocks.tintRms)},
+                          {"tint_worst", num(m.blocks.tintWorst)}, {"chroma_worst", num(m.blocks.chroma)},
+                          {"reference_chroma_worst", num(m.blocks.referenceChroma)}}},
+              {"steps", {{"faces", m.steps.faces}, {"pixel_pairs", m.steps.pairs}, {"rms", num(m.steps.rms)}, {"worst", num(m.steps.worst)}}}}},
             {"seconds", m.seconds},
             {"visibility_seconds", m.visibilitySeconds},
             {"evaluation_seconds", m.evaluationSeconds},
@@ -128,6 +136,19 @@ std::string headlineSentence(const ValidationResult& r) {
           << fmt("%.3g", neuralWins ? b.metrics.relMse / std::max(r.neural.metrics.relMse, 1e-300)
                                     : r.neural.metrics.relMse / std::max(b.metrics.relMse, 1e-300))
           << "x lower relMSE).";
+    }
+    const MethodResult& n = r.neural;
+    if (n.surfaces.pixels > 0 && !referenceIsBlack(r)) {
+        s << " What the eye sees, over the " << n.surfaces.pixels << " pixels on surfaces: relMSE " << fmt("%.3g", n.surfaces.relMse);
+        if (n.blocks.blocks > 0)
+            s << "; averaged over " << n.blocks.blockSize << " x " << n.blocks.blockSize << "-pixel blocks the light is off by "
+              << fmt("%.3g", n.blocks.rms) << " rms (worst block " << fmt("%.3g", n.blocks.worst) << ") and tinted by "
+              << fmt("%.3g", n.blocks.tintRms) << " rms (worst " << fmt("%.3g", n.blocks.tintWorst) << "; the reference's chroma "
+              << fmt("%.3g", n.blocks.referenceChroma) << ", the asset's " << fmt("%.3g", n.blocks.chroma) << ")";
+        if (n.steps.faces > 0)
+            s << "; where the image crosses a cell face it steps by " << fmt("%.3g", n.steps.rms) << " rms (worst "
+              << fmt("%.3g", n.steps.worst) << ", " << n.steps.faces << " faces) beyond the reference's change there";
+        s << ".";
     }
     return s.str();
 }

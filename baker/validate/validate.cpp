@@ -40,13 +40,20 @@ void fnv(uint64_t& h, const void* data, size_t bytes) {
 }
 
 // Scores a first-hit render and splits its wall time by the thread-time shares.
-void score(MethodResult& m, const NeuralRenderStats& st, const Image& reference, float exposure,
-           const std::vector<int>& regionOfPixel, const std::vector<int>& materialOfPixel, int materialCount) {
+void score(MethodResult& m, const NeuralRenderStats& st, const ValidationResult& r, float exposure) {
+    const Image& reference = r.reference;
     m.metrics = compareImages(m.image, reference, exposure);
     m.byDecade = relMseByDecade(m.image, reference);
     m.distribution = errorDistribution(m.image, reference);
-    m.byRegion = relMseByRegion(m.image, reference, regionOfPixel, kRegionCount);
-    m.byMaterial = relMseByRegion(m.image, reference, materialOfPixel, materialCount);
+    m.byRegion = relMseByRegion(m.image, reference, r.regionOfPixel, kRegionCount);
+    m.byMaterial = relMseByRegion(m.image, reference, r.materialOfPixel, int(r.materialNames.size()));
+    {
+        std::vector<int> surface(r.surfaceOfPixel.begin(), r.surfaceOfPixel.end());
+        for (int& v : surface) v = v ? 0 : -1;
+        m.surfaces = relMseByRegion(m.image, reference, surface, 1)[0];
+    }
+    m.blocks = blockFigure(m.image, reference, r.surfaceOfPixel, std::max(1, r.width / 16));
+    m.steps = stepFigure(m.image, reference, r.cellOfPixel, r.surfaceOfPixel);
     m.seconds = st.seconds;
     double threadTime = st.visibilitySeconds + st.evaluationSeconds;
     double share = threadTime > 0.0 ? st.evaluationSeconds / threadTime : 0.0;
@@ -460,6 +467,9 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, partition);
     r.regionOfPixel = pixelRegions(hits);
     r.materialOfPixel = hits.material;
+    r.cellOfPixel = hits.voxel;
+    r.surfaceOfPixel.assign(hits.material.size(), 0);
+    for (size_t i = 0; i < hits.material.size(); ++i) r.surfaceOfPixel[i] = hits.material[i] >= 0 && !hits.emitter[i];
     for (size_t k = 0; k < scene.materials.size(); ++k)
         r.materialNames.push_back(scene.materials[k].name.empty() ? "material " + std::to_string(k) : scene.materials[k].name);
     r.seams = seamFigure(hits, partition, asset);
@@ -481,7 +491,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         NeuralRenderStats st;
         if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
             throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
-        score(m, st, r.reference, settings.exposure, r.regionOfPixel, r.materialOfPixel, int(r.materialNames.size()));
+        score(m, st, r, settings.exposure);
         // The networks' weights and, for an adaptive asset, its tree's nodes (8 bytes each).
         m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4) +
                   partition.tree.size() * 8;
@@ -608,7 +618,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         m.name = "sh-probes";
         NeuralRenderStats st;
         renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, fh, m.image, &st);
-        score(m, st, r.reference, settings.exposure, r.regionOfPixel, r.materialOfPixel, int(r.materialNames.size()));
+        score(m, st, r, settings.exposure);
         m.bytes = probes.bytes();
         equalError(m, r.curve);
         r.baseline = std::move(m);

@@ -79,6 +79,12 @@ struct MethodResult {
     ErrorDistribution distribution;
     std::vector<RegionError> byRegion;  // kRegionNames order
     std::vector<RegionError> byMaterial;  // the scene's materials in order, by the material each pixel's centre sees
+    // What the eye sees (metrics.h): over the pixels whose centre sees a surface that does not emit. relMSE
+    // there (the background, often most of an object scene's image, no longer dilutes it), the block figure
+    // (blocks of width / 16 pixels) and the steps across the partition's cells.
+    RegionError surfaces;
+    BlockFigure blocks;
+    StepFigure steps;
     // The path tracer's time to reach this image's relMSE on the convergence curve (log-log interpolation;
     // extrapolated with relMSE ~ 1/time outside it) and that time over this render's times.
     double equalErrorSeconds = 0.0;
@@ -147,6 +153,8 @@ struct ValidationResult {
     nlohmann::json assetMetadata;  // parsed META, or null
     std::vector<int> regionOfPixel;  // kRegionNames index of each pixel
     std::vector<int> materialOfPixel;  // FirstHits::material
+    std::vector<int64_t> cellOfPixel;  // FirstHits::voxel
+    std::vector<uint8_t> surfaceOfPixel;  // 1 where the pixel's centre sees a surface that does not emit
     std::vector<std::string> materialNames;  // the scene's, in order ("material N" where unnamed)
     SeamFigure seams;
 };

@@ -99,6 +99,88 @@ TEST(Metrics, ErrorDistributionAndRegionsOfKnownImages) {
     EXPECT_THROW(relMseByRegion(img, ref, std::vector<int>(3, 0), 2), std::invalid_argument);
 }
 
+// What the eye sees (issue 38): block, tint and step figures of images with a known bias.
+TEST(Metrics, BlockFigureSeesABlockBiasAndATintThatRelMseCallsSmall) {
+    // A grey reference of 64 x 64 pixels, 16 blocks of 16 x 16; every pixel masked but the top-left block's one.
+    Image reference(64, 64);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) reference.at(x, y) = glm::vec3(0.5f + 0.004f * float(x));
+    std::vector<uint8_t> mask(64 * 64, 1);
+    mask[0] = 0;
+    // Identical: nothing.
+    BlockFigure same = blockFigure(reference, reference, mask, 16);
+    EXPECT_EQ(same.blocks, 15u);  // the top-left block has an unmasked pixel
+    EXPECT_EQ(same.rms, 0.0);
+    EXPECT_EQ(same.tintWorst, 0.0);
+    EXPECT_NEAR(same.referenceChroma, 0.0, 1e-7);
+    // One block (of the 15 counted) 20% too bright: worst 0.2, rms 0.2 / sqrt(15).
+    Image image = reference;
+    for (int y = 16; y < 32; ++y)
+        for (int x = 32; x < 48; ++x) image.at(x, y) *= 1.2f;
+    BlockFigure bright = blockFigure(image, reference, mask, 16);
+    EXPECT_NEAR(bright.worst, 0.2, 1e-6);
+    EXPECT_NEAR(bright.rms, 0.2 / std::sqrt(15.0), 1e-6);
+    EXPECT_NEAR(bright.tintWorst, 0.0, 1e-6);  // brighter, not tinted
+    // One block tinted: red +30%, blue -30%, its luminance nearly the same. c = rgb / mean: (1.3, 1, 0.7) -> tint 0.3.
+    image = reference;
+    for (int y = 32; y < 48; ++y)
+        for (int x = 0; x < 16; ++x) image.at(x, y) *= glm::vec3(1.3f, 1.0f, 0.7f);
+    BlockFigure tinted = blockFigure(image, reference, mask, 16);
+    EXPECT_NEAR(tinted.tintWorst, 0.3, 1e-5);
+    EXPECT_NEAR(tinted.chroma, 0.6, 1e-5);  // (1.3 - 0.7) / 1
+    EXPECT_NEAR(tinted.referenceChroma, 0.0, 1e-7);
+    EXPECT_LT(tinted.worst, 0.05);  // 0.2126 x 0.3 - 0.0722 x 0.3
+    // A checkerboard of blocks +-10%: every block off by 10%, while relMSE (with its + 0.01) reads ~0.01.
+    image = reference;
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) image.at(x, y) *= ((x / 16 + y / 16) % 2) ? 1.1f : 0.9f;
+    BlockFigure checker = blockFigure(image, reference, mask, 16);
+    EXPECT_NEAR(checker.rms, 0.1, 1e-5);
+    EXPECT_NEAR(checker.worst, 0.1, 1e-5);
+    EXPECT_LT(compareImages(image, reference).relMse, 0.011);
+    // Blocks whose reference is black (below 1e-3 of the masked mean) are not counted.
+    Image dark = reference;
+    for (int y = 48; y < 64; ++y)
+        for (int x = 48; x < 64; ++x) dark.at(x, y) = glm::vec3(0.0f);
+    EXPECT_EQ(blockFigure(reference, dark, mask, 16).blocks, 14u);
+}
+
+TEST(Metrics, StepFigureSeesAJumpAtACellFaceButNotAUniformBias) {
+    // Two cells side by side (x < 20: cell 3, else cell 7), a third below (y >= 40: cell 9); the reference is
+    // constant, so a pixel pair's reference jump is 0 and the image's jump is the step.
+    const int w = 48, h = 48;
+    Image reference(w, h);
+    for (glm::vec3& p : reference.pixels) p = glm::vec3(0.5f);
+    std::vector<int64_t> cell(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) cell[size_t(y) * w + size_t(x)] = y >= 40 ? 9 : x < 20 ? 3 : 7;
+    std::vector<uint8_t> mask(size_t(w) * h, 1);
+    StepFigure none = stepFigure(reference, reference, cell, mask);
+    EXPECT_EQ(none.rms, 0.0);
+    EXPECT_EQ(none.faces, 3u);  // 3|7 (40 rows), 3|9 (20 columns), 7|9 (28 columns)
+    EXPECT_EQ(none.pairs, 40u + 20u + 28u);
+    // Cell 7 10% brighter: across 3|7 the image jumps by 0.05 against a level of (3 x 0.5 + 0.55) / 4; across
+    // 7|9 likewise; 3|9 has no step.
+    Image image = reference;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            if (cell[size_t(y) * w + size_t(x)] == 7) image.at(x, y) *= 1.1f;
+    StepFigure step = stepFigure(image, reference, cell, mask);
+    const double expected = 0.05 / (2.05 / 4.0);
+    EXPECT_NEAR(step.worst, expected, 1e-5);
+    EXPECT_NEAR(step.rms, expected * std::sqrt((40.0 + 28.0) / (40.0 + 20.0 + 28.0)), 1e-5);
+    // The whole image 10% brighter: no step anywhere.
+    Image uniform = reference;
+    for (glm::vec3& p : uniform.pixels) p *= 1.1f;
+    EXPECT_NEAR(stepFigure(uniform, reference, cell, mask).worst, 0.0, 1e-6);
+    // A face with fewer than minPairs pairs is not counted; unmasked pixels drop their pairs.
+    EXPECT_EQ(stepFigure(image, reference, cell, mask, 2, 30).faces, 1u);  // only 3|7's 40 (7|9 has 28)
+    std::vector<uint8_t> left(mask);
+    // Column 18 unmasked: the 3|7 pairs (x = 18 and 21 at reach 2) and one 3|9 pair (column 18) go.
+    for (int y = 0; y < h; ++y) left[size_t(y) * w + 18] = 0;
+    EXPECT_EQ(stepFigure(image, reference, cell, left).pairs, 19u + 28u);
+}
+
 TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
     // A plane split by the grid's face x = 0 into two voxels whose networks output the constants 1 and 2:
     // every sample across the face sees a jump of 1 around a mean of 1.5, relMSE 1 / (1.5^2 + 0.01).
