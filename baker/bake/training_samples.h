@@ -38,7 +38,7 @@ inline glm::vec3 demodulationDivisor(const TrainingSample& t) { return glm::max(
 struct SampleSettings {
     uint32_t points = 160000;
     uint32_t paths = 32;
-    int maxDepth = 6;  // segments, counting the (virtual) one that reached the point; 0 = unbounded
+    int maxDepth = 0;  // segments, counting the (virtual) one that reached the point; 0 = unbounded (issue 38)
     uint32_t seed = 0;
     uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area
     // Drop points no viewer can see from their direction wo (PathTracer::viewable: the view ray meets the

@@ -61,7 +61,7 @@ struct BakeOptions {
     std::string grid = "3", hidden = "9", loss = lossName(defaults().train.loss), encoding = "fp16";
     uint32_t points = defaults().samples.points, paths = defaults().samples.paths, seed = 0, minSamples = 64;
     NeeMode nee = NeeMode::Power;
-    int maxDepth = 6, epochs = 1500, threads = 0, batch = 32, patience = 300;
+    int maxDepth = 0, epochs = 1500, threads = 0, batch = 32, patience = 300;
     float learningRate = 0.01f, blendBand = defaults().blendBand;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
@@ -127,7 +127,6 @@ constexpr double kLargeHeldOutMean = 1.0, kLargeHeldOutWorst = 5.0;
 
 int runBake(BakeOptions o, CLI::App* cmd) {
     bool configEnvironment = false, configLighting = false, configPoints = false, configPaths = false;
-    bool configMaxDepth = false;
     // A config file supplies defaults; flags given on the command line win.
     if (!o.config.empty()) {
         nlohmann::json cfg;
@@ -169,7 +168,6 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("paths", "--paths", o.paths);
             configPaths = cfg.contains("paths");
             take("max_depth", "--max-depth", o.maxDepth);
-            configMaxDepth = cfg.contains("max_depth");
             if (cfg.contains("hidden") && cfg["hidden"].is_number_integer() && cmd->count("--hidden") == 0)
                 o.hidden = std::to_string(cfg["hidden"].get<int>());
             else
@@ -269,10 +267,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.integral = o.integral;
     // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
     if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
-    // ... with paths of every length unless told, as the rounds' fixed point has them (docs/results.md: a start cut
-    // at 6 segments left the rounds light to restore, 3.8x the error after one round on a box of albedo 0.95) ...
-    if (s.training == TrainingMethod::Integral && cmd->count("--max-depth") == 0 && !configMaxDepth)
-        o.maxDepth = 0;
+    // (Its paths are of every length unless told, as every bake's are since issue 38: docs/results.md: a start
+    // cut at 6 segments left the rounds light to restore, 3.8x the error after one round on a box of albedo 0.95.)
     // ... and from 1,500 points per grid cell (at least 40,000) unless told (docs/results.md: 750 left the rounds
     // a start they needed many of to undo).
     if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints)
@@ -487,8 +483,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
                                            {"learned", NeeMode::Learned}},
             CLI::ignore_case));
     cmd->add_option("--max-depth", o->maxDepth,
-                    "Path length in segments for training radiance; 0 = unbounded (default 6; with --training "
-                    "integral: of the start's paths, default 0)");
+                    "Path length in segments for training radiance; 0 = unbounded, with Russian roulette (default 0: "
+                    "the full light transport; a length cuts off the light of longer paths, a bias validate reports)");
     cmd->add_option("--hidden", o->hidden, "Hidden layer widths, comma-separated (default 9)");
     cmd->add_option("--epochs", o->epochs, "Maximum training epochs per voxel (default 1500)");
     cmd->add_option("--batch-size", o->batch, "Mini-batch size (default 32)");

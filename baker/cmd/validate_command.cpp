@@ -25,7 +25,7 @@ constexpr uint64_t kValidateBytesPerPixel = 200;
 
 struct ValidateOptions {
     std::string scene, asset, output, bakeStats, cacheDir, reference;
-    int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 6, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
+    int width = 512, height = 0, camera = -1, referenceSpp = 512, maxDepth = 0, neuralSpp = 4, curveMaxSpp = 64, threads = 0;
     uint32_t seed = 0;
     uint32_t baselinePointsPerProbe = kBaselinePointsPerProbe, baselinePathsPerProbe = kBaselinePathsPerProbe;
     float exposure = 0.0f;
@@ -163,6 +163,7 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             std::printf("\n");
         }
     }
+    for (const std::string& note : r.biasNotes) std::printf("  bias: %s\n", note.c_str());
     if (referenceIsBlack(r))
         std::printf("  path tracer at equal error: none: %s\n", kNoLightToCompare);
     else
@@ -200,7 +201,7 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     cmd->add_option("--height", o->height, "Image height (default from the width and the camera aspect)")->check(CLI::Range(1, 1 << 14));
     cmd->add_option("--camera", o->camera, "Camera index (default: the first)")->check(CLI::NonNegativeNumber);
     cmd->add_option("--reference-spp", o->referenceSpp, "Paths per pixel of the reference (default 512)")->check(CLI::Range(1, 1 << 24));
-    cmd->add_option("--max-depth", o->maxDepth, "Path length of reference and convergence curve; 0 = unbounded (default 6)")
+    cmd->add_option("--max-depth", o->maxDepth, "Path length of reference and convergence curve; 0 = unbounded (default 0: the full light transport; a length is reported as a biased reference)")
         ->check(CLI::Range(0, 1 << 20));
     cmd->add_option("--spp", o->neuralSpp, "Primary samples per pixel through the asset (default 4)")->check(CLI::Range(1, 1 << 16));
     cmd->add_option("--curve-max-spp", o->curveMaxSpp, "The path tracer's convergence curve goes 1, 2, 4, ... up to this (default 64)")

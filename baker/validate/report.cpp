@@ -265,6 +265,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     j["settings"] = {{"reference_spp", s.referenceSpp}, {"max_depth", s.maxDepth}, {"neural_spp", s.neuralSpp},
                      {"curve_max_spp", s.curveMaxSpp}, {"seed", s.seed}, {"exposure", s.exposure}};
     j["reference"] = {{"source", r.referenceSource}, {"cache_file", r.referenceCacheFile}, {"seconds", r.referenceSeconds}};
+    j["bias_notes"] = r.biasNotes;
     if (r.referenceNoise >= 0.0) j["reference"]["noise_relmse_estimate"] = num(r.referenceNoise);
     nlohmann::json curve = nlohmann::json::array();
     for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
@@ -397,6 +398,7 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
       << r.width << "x" << r.height << " pixels, environment: " << escape(r.environment) << ". Reference: " << r.settings.referenceSpp << " paths per pixel, path length "
       << (r.settings.maxDepth ? std::to_string(r.settings.maxDepth) : std::string("unbounded")) << " ("
       << escape(r.referenceSource) << ")";
+    for (const std::string& note : r.biasNotes) h << "; <b>bias</b>: " << escape(note);
     if (r.referenceNoise >= 0.0)
         h << "; its own noise adds about " << fmt("%.3g", r.referenceNoise)
           << " to every relMSE measured against it (estimated from the path tracer's curve)";

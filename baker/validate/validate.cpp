@@ -507,6 +507,20 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     if (nradGetMetadata(asset, &json, &length) == NRAD_OK && length > 0)
         r.assetMetadata = nlohmann::json::parse(std::string(json, length), nullptr, false);
     if (r.assetMetadata.is_discarded()) r.assetMetadata = nullptr;
+    if (settings.maxDepth > 0)
+        r.biasNotes.push_back("the reference's paths are cut at " + std::to_string(settings.maxDepth) +
+                              " segments: it lacks the light of longer paths, and every figure here is against that cut "
+                              "solution, not the full light transport (--max-depth 0, the default)");
+    if (r.assetMetadata.is_object()) {
+        const nlohmann::json bake = r.assetMetadata.value("bake", nlohmann::json());
+        const nlohmann::json depth = bake.is_object() ? bake.value("max_depth", nlohmann::json()) : nlohmann::json();
+        if (depth.is_number_integer() && depth.get<int>() > 0)
+            r.biasNotes.push_back("the asset was baked with paths cut at " + std::to_string(depth.get<int>()) +
+                                  " segments (--max-depth): it lacks the light of longer paths" +
+                                  (settings.maxDepth == 0 ? std::string(", a bias in the figures against the unbounded reference")
+                                                          : std::string()));
+    }
+    for (const std::string& note : r.biasNotes) say("bias: " + note);
 
     // 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
     if (settings.baseline) {

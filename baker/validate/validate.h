@@ -41,7 +41,7 @@ struct ValidateSettings {
     int width = 512, height = 0;  // height 0: from the width and the camera's aspect ratio
     Camera camera;
     int referenceSpp = 512;  // the paper's reference
-    int maxDepth = 6;  // path length of the reference and the convergence curve (segments; 0 = unbounded)
+    int maxDepth = 0;  // path length of the reference and the convergence curve (segments; 0 = unbounded: the truth)
     int neuralSpp = 4;  // the paper's: primary visibility anti-aliasing for neural and baseline renders
     int curveMaxSpp = 64;  // the path tracer's convergence curve: 1, 2, 4, ... up to this
     uint32_t seed = 0;  // the reference's; the curve uses seed + 1 (independent of the reference)
@@ -151,6 +151,9 @@ struct ValidationResult {
     std::string baselineSamplesNote;  // where the baseline's training settings came from
     double baselineSeconds = 0.0;  // sampling + fit
     nlohmann::json assetMetadata;  // parsed META, or null
+    // Truncated light transport, said every time (issue 38): a reference or a bake whose paths were cut at a
+    // length lacks the light of longer paths, which interiors are made of.
+    std::vector<std::string> biasNotes;
     std::vector<int> regionOfPixel;  // kRegionNames index of each pixel
     std::vector<int> materialOfPixel;  // FirstHits::material
     std::vector<int64_t> cellOfPixel;  // FirstHits::voxel

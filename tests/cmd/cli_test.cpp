@@ -289,11 +289,11 @@ TEST(CliRender, ThroughAnAssetCloseToThePathTracedImage) {
     RunResult r = run("render " + scene + " --asset '" + dir + "/a.nrad' --spp 4 --width 48 -o '" + dir + "/n.exr' -q");
     ASSERT_EQ(r.exitCode, 0) << r.output;
     EXPECT_NE(r.output.find("0 outside the grid, 0 in empty voxels"), std::string::npos) << r.output;
-    ASSERT_EQ(run("render " + scene + " --spp 64 --max-depth 6 --width 48 -o '" + dir + "/ref.exr' -q").exitCode, 0);
+    ASSERT_EQ(run("render " + scene + " --spp 64 --width 48 -o '" + dir + "/ref.exr' -q").exitCode, 0);
     Image neural = readExr(dir + "/n.exr"), ref = readExr(dir + "/ref.exr");
     for (const glm::vec3& p : neural.pixels)
         for (int c = 0; c < 3; ++c) ASSERT_TRUE(std::isfinite(p[c]) && p[c] >= 0.0f);
-    // The same scene and path length. In the lower two thirds of the image (walls, floor, blocks) the mean
+    // The same scene, every path length (the bake's default and render's). In the lower two thirds of the image (walls, floor, blocks) the mean
     // radiance agrees within 5% per channel. The top third is left out: there the light's voxel (radiance
     // 17 beside a ceiling of 0.3, same normal) exceeds what 9 ReLUs can draw, and the ceiling comes out too
     // bright (+22% red, +83% blue at the paper's settings): docs/training.md, "Voxel 16".
@@ -393,6 +393,27 @@ TEST(CliValidate, ReportWithCachedReferenceThatRendersInChromium) {
     EXPECT_GE(total, 10) << dom.substr(0, 2000);
     EXPECT_EQ(loaded, total);
     EXPECT_NE(dom.find("error-vs-time.svg"), std::string::npos);
+    // The defaults are the full light transport: no bias to report. What the eye sees is in the summary and
+    // report.json, for both methods.
+    EXPECT_TRUE(j["bias_notes"].empty()) << j["bias_notes"].dump();
+    EXPECT_EQ(r.output.find("bias:"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("what the eye sees"), std::string::npos) << r.output;
+    for (const char* method : {"neural", "baseline"}) {
+        const nlohmann::json& eye = j[method]["what_the_eye_sees"];
+        EXPECT_GT(eye["surface_pixels"].get<size_t>(), 40u * 40u / 2) << method;
+        EXPECT_EQ(eye["blocks"]["block_pixels"].get<int>(), 40 / 16) << method;
+        EXPECT_GT(eye["blocks"]["count"].get<size_t>(), 100u) << method;
+        EXPECT_GT(eye["blocks"]["relative_error_rms"].get<double>(), 0.0) << method;
+    }
+    // A bake and a reference cut at 6 segments: both said, as biases.
+    ASSERT_EQ(run("bake " + scene + " -o '" + dir + "/cut.nrad' --points 2000 --paths 8 --epochs 20 --max-depth 6 -q").exitCode, 0);
+    r = run("validate " + scene + " '" + dir + "/cut.nrad' -o '" + dir + "/report3' --no-baseline --max-depth 6 --width 16 "
+            "--reference-spp 2 --curve-max-spp 1 --no-cache");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("bias: the reference's paths are cut at 6 segments"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("bias: the asset was baked with paths cut at 6 segments"), std::string::npos) << r.output;
+    std::ifstream f3(dir + "/report3/report.json");
+    EXPECT_EQ(nlohmann::json::parse(f3)["bias_notes"].size(), 2u);
 }
 
 TEST(CliValidate, BadInputsExitWithTheirCodes) {

@@ -397,7 +397,7 @@ TEST(Validate, ReferenceKeyFollowsWhatTheImageDependsOn) {
     };
     withSettings("spp", [](ValidateSettings& t) { t.referenceSpp = 1024; });
     withSettings("seed", [](ValidateSettings& t) { t.seed = 1; });
-    withSettings("max depth", [](ValidateSettings& t) { t.maxDepth = 0; });
+    withSettings("max depth", [](ValidateSettings& t) { t.maxDepth = 6; });
     withSettings("camera position", [](ValidateSettings& t) { t.camera.position.x += 0.25f; });
     withSettings("camera orientation", [](ValidateSettings& t) { t.camera.worldFromCamera[0][1] = 0.01f; });
     withSettings("camera size", [](ValidateSettings& t) { t.camera.ymag = 2.0f; });
