@@ -6,6 +6,9 @@
   except through a 0.5 x 1.6 m doorway; every surface grey Lambertian (0.6), so any colour in an image of it
   is an error. The camera stands in room B and looks at the shared wall and the doorway.
 - scenes/sealed-rooms/sealed-rooms.gltf: the same without the doorway: room B must be exactly black.
+- scenes/sky-room/sky-room.gltf: a room of 5 x 3 x 5 m with 200 mm walls, lit only by the sky (it has no light
+  of its own: nrad gives it the default sky) through a door and two windows, a table and a cabinet inside,
+  every surface grey (0.6). The camera stands inside and sees the ceiling, two walls and the floor.
 
 Units: millimetres here, metres in the file. Run from anywhere: python3 scenes/make_interiors.py
 """
@@ -95,6 +98,112 @@ def write(name, door):
         f.write("\n")
 
 
+def wall_with_openings(axis, at, normal, u_range, v_range, openings):
+    """A wall in the plane coordinate[axis] = at, spanning u_range x v_range (u, v: the other two axes in
+    order), less the rectangular openings [(u0, u1, v0, v1)], as a grid of rectangles, facing `normal`."""
+    us = sorted({u_range[0], u_range[1]} | {o[0] for o in openings} | {o[1] for o in openings})
+    vs = sorted({v_range[0], v_range[1]} | {o[2] for o in openings} | {o[3] for o in openings})
+    others = [k for k in range(3) if k != axis]
+    quads = []
+    for i in range(len(us) - 1):
+        for j in range(len(vs) - 1):
+            cu, cv = (us[i] + us[i + 1]) / 2, (vs[j] + vs[j + 1]) / 2
+            if any(o[0] < cu < o[1] and o[2] < cv < o[3] for o in openings):
+                continue
+            corners = []
+            for u, v in [(us[i], vs[j]), (us[i + 1], vs[j]), (us[i + 1], vs[j + 1]), (us[i], vs[j + 1])]:
+                p = [0.0, 0.0, 0.0]
+                p[axis], p[others[0]], p[others[1]] = at, u, v
+                corners.append(tuple(p))
+            quads.append(facing(corners, normal))
+    return quads
+
+
+def box(lo, hi, bottom=False):
+    """An axis-aligned box's faces, outwards (without its bottom unless asked)."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    q = [facing([(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], (0, 1, 0)),
+         facing([(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], (-1, 0, 0)),
+         facing([(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)], (1, 0, 0)),
+         facing([(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], (0, 0, -1)),
+         facing([(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, 1))]
+    if bottom:
+        q.append(facing([(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, -1, 0)))
+    return q
+
+
+def write_sky_room():
+    X, Y, Z, T = 5000.0, 3000.0, 5000.0, 200.0  # inner size and wall thickness
+    door = (1800.0, 2700.0, 0.0, 2100.0)  # in the z = Z wall (u = x, v = y)
+    windows = [(800.0, 2000.0, 900.0, 1900.0), (2800.0, 4000.0, 900.0, 1900.0)]  # in the x = 0 wall (u = y, v = z)
+    windows = [(w[2], w[3], w[0], w[1]) for w in windows]  # as (y0, y1, z0, z1)
+    grey = []
+    # Inside faces, then the outside of the shell, then each opening's reveal through the thickness.
+    grey.append(facing([(0, 0, 0), (X, 0, 0), (X, 0, Z), (0, 0, Z)], (0, 1, 0)))
+    grey.append(facing([(0, Y, 0), (X, Y, 0), (X, Y, Z), (0, Y, Z)], (0, -1, 0)))
+    grey += wall_with_openings(0, 0.0, (1, 0, 0), (0.0, Y), (0.0, Z), windows)
+    grey += wall_with_openings(0, X, (-1, 0, 0), (0.0, Y), (0.0, Z), [])
+    grey += wall_with_openings(2, 0.0, (0, 0, 1), (0.0, X), (0.0, Y), [])
+    grey += wall_with_openings(2, Z, (0, 0, -1), (0.0, X), (0.0, Y), [door])
+    grey.append(facing([(-T, -T, -T), (X + T, -T, -T), (X + T, -T, Z + T), (-T, -T, Z + T)], (0, -1, 0)))
+    grey.append(facing([(-T, Y + T, -T), (X + T, Y + T, -T), (X + T, Y + T, Z + T), (-T, Y + T, Z + T)], (0, 1, 0)))
+    grey += wall_with_openings(0, -T, (-1, 0, 0), (-T, Y + T), (-T, Z + T), windows)
+    grey += wall_with_openings(0, X + T, (1, 0, 0), (-T, Y + T), (-T, Z + T), [])
+    grey += wall_with_openings(2, -T, (0, 0, -1), (-T, X + T), (-T, Y + T), [])
+    grey += wall_with_openings(2, Z + T, (0, 0, 1), (-T, X + T), (-T, Y + T), [(door[0], door[1], -T, door[3])])
+    # The shell's edges between inside and outside where the floor and walls meet the openings: reveals.
+    for (y0, y1, z0, z1) in windows:
+        grey.append(facing([(-T, y0, z0), (0, y0, z0), (0, y0, z1), (-T, y0, z1)], (0, 1, 0)))
+        grey.append(facing([(-T, y1, z0), (0, y1, z0), (0, y1, z1), (-T, y1, z1)], (0, -1, 0)))
+        grey.append(facing([(-T, y0, z0), (0, y0, z0), (0, y1, z0), (-T, y1, z0)], (0, 0, 1)))
+        grey.append(facing([(-T, y0, z1), (0, y0, z1), (0, y1, z1), (-T, y1, z1)], (0, 0, -1)))
+    x0, x1, y1 = door[0], door[1], door[3]
+    grey.append(facing([(x0, y1, Z), (x1, y1, Z), (x1, y1, Z + T), (x0, y1, Z + T)], (0, -1, 0)))
+    grey.append(facing([(x0, 0, Z), (x0, y1, Z), (x0, y1, Z + T), (x0, 0, Z + T)], (1, 0, 0)))
+    grey.append(facing([(x1, 0, Z), (x1, y1, Z), (x1, y1, Z + T), (x1, 0, Z + T)], (-1, 0, 0)))
+    grey.append(facing([(x0, -T, Z), (x1, -T, Z), (x1, -T, Z + T), (x0, -T, Z + T)], (0, 1, 0)))  # the door's sill
+    grey.append(facing([(x0, -T, Z), (x1, -T, Z), (x1, 0, Z), (x0, 0, Z)], (0, 0, 1)))  # the floor's edge in the door
+    # A table (top on four legs) and a cabinet.
+    grey += box((2000.0, 700.0, 1800.0), (3400.0, 750.0, 2800.0), bottom=True)
+    for lx, lz in [(2050, 1850), (3300, 1850), (2050, 2700), (3300, 2700)]:
+        grey += box((float(lx), 0.0, float(lz)), (lx + 50.0, 700.0, lz + 50.0))
+    grey += box((4300.0, 0.0, 600.0), (4900.0, 1800.0, 1600.0))
+    b = cb.Builder()
+    prims = [b.primitive(grey, 0)]
+    # The camera by the wall opposite the windows, 1.6 m high, looking towards the windows and the door's
+    # corner, a little down (yaw about Y, then pitch).
+    yaw, pitch = math.radians(55.0), math.radians(-12.0)  # looking along (-0.82, 0, -0.57), then 12 degrees down
+    qy = (0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2))
+    qx = (math.sin(pitch / 2), 0.0, 0.0, math.cos(pitch / 2))
+    # q = qy * qx (pitch in the camera's frame, then yaw)
+    q = (qy[3] * qx[0] + qy[0] * qx[3] + qy[1] * qx[2] - qy[2] * qx[1],
+         qy[3] * qx[1] - qy[0] * qx[2] + qy[1] * qx[3] + qy[2] * qx[0],
+         qy[3] * qx[2] + qy[0] * qx[1] - qy[1] * qx[0] + qy[2] * qx[3],
+         qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2])
+    camera = {"name": "camera", "camera": 0, "translation": [4600.0 * cb.MM, 1600.0 * cb.MM, 4400.0 * cb.MM], "rotation": list(q)}
+    doc = {
+        "asset": {"version": "2.0", "generator": "nrad scenes/make_interiors.py"},
+        "extensionsUsed": ["KHR_materials_specular"],
+        "scene": 0,
+        "scenes": [{"name": "sky-room", "nodes": [0, 1]}],
+        "nodes": [{"name": "room", "mesh": 0}, camera],
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": math.radians(65.0), "aspectRatio": 4.0 / 3.0, "znear": 0.01}}],
+        "meshes": [{"name": "room", "primitives": prims}],
+        "materials": [cb.material("grey", GREY)],
+        "accessors": b.accessors,
+        "bufferViews": b.views,
+        "buffers": [{"byteLength": len(b.blob),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(b.blob)).decode()}],
+    }
+    folder = os.path.join(HERE, "sky-room")
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, "sky-room.gltf"), "w") as f:
+        json.dump(doc, f, indent=1)
+        f.write("\n")
+
+
 if __name__ == "__main__":
     write("doorway-rooms", door=True)
     write("sealed-rooms", door=False)
+    write_sky_room()

@@ -5,6 +5,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <nrad/format.h>
 
 #include "baker/validate/metrics.h"
 #include "baker/validate/report.h"
@@ -179,6 +180,73 @@ TEST(Metrics, StepFigureSeesAJumpAtACellFaceButNotAUniformBias) {
     // Column 18 unmasked: the 3|7 pairs (x = 18 and 21 at reach 2) and one 3|9 pair (column 18) go.
     for (int y = 0; y < h; ++y) left[size_t(y) * w + 18] = 0;
     EXPECT_EQ(stepFigure(image, reference, cell, left).pairs, 19u + 28u);
+}
+
+TEST(Validate, AnAssetWithAnInjectedBiasOrTintIsFlagged) {
+    // A small Cornell box bake on a 2 x 2 x 2 grid without blending, validated against its own neural image
+    // (so every figure of the asset as baked is exactly 0), then with its x = 0 half (4 of 8 voxels) injected
+    // with a 30% brighter output (the voxels' scale: a block bias with a step at the x mid-plane), and with a
+    // 30% redder one (the last layer's red row and bias, where the red output is positive: a tint).
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    BakeSettings b;
+    b.grid = glm::uvec3(2);
+    b.samples.points = 4000;
+    b.samples.paths = 4;
+    b.train.epochs = 30;
+    b.train.patience = 30;
+    b.blendBand = 0.0f;  // a step, not a blended ramp
+    const std::vector<uint8_t> bytes = test::bakeBytes(scene, b, 2);
+    format::Asset decoded;
+    ASSERT_EQ(format::decode(bytes.data(), bytes.size(), decoded), format::DecodeStatus::Ok);
+    const size_t params = decoded.weights.size() / decoded.voxels.size();
+    ASSERT_EQ(params, 120u);  // 9-9-3: W1 81, b1 9, W2 27, b2 3
+    const std::string dir = test::temporaryDirectory();
+    auto validateBytes = [&](const std::vector<uint8_t>& asset, const std::string& reference) {
+        NradAsset a = nullptr;
+        EXPECT_EQ(nradLoadFromMemory(asset.data(), asset.size(), NRAD_LOAD_COPY, &a, nullptr, 0), NRAD_OK);
+        ValidateSettings s;
+        s.camera = scene.cameras[0];
+        s.width = 96;
+        s.referenceSpp = 1;
+        s.curveMaxSpp = 1;
+        s.neuralSpp = 2;
+        s.baseline = false;
+        s.referenceImage = reference;
+        ValidationResult r = runValidation(scene, "", a, "", s);
+        nradReleaseAsset(a);
+        return r;
+    };
+    writeExr(dir + "/own.exr", validateBytes(bytes, "").neural.image);
+    const ValidationResult base = validateBytes(bytes, dir + "/own.exr");
+    format::Asset brighter = decoded, redder = decoded;
+    for (size_t k = 0; k < decoded.voxels.size(); ++k) {
+        if (decoded.voxels[k].index % 2 != 0) continue;  // x = 1
+        brighter.voxels[k].scale *= 1.3f;
+        float* w = &redder.weights[k * params + 90];
+        for (int i = 0; i < 9; ++i) w[i] *= 1.3f;  // W2's red row
+        w[27] *= 1.3f;  // b2's red
+    }
+    const ValidationResult bright = validateBytes(format::encode(brighter), dir + "/own.exr");
+    const ValidationResult red = validateBytes(format::encode(redder), dir + "/own.exr");
+    const MethodResult &n0 = base.neural, &nb = bright.neural, &nr = red.neural;
+    std::printf("blocks %zu, worst %.4f / %.4f / %.4f; steps %zu faces, worst %.4f / %.4f / %.4f; tint worst %.4f / %.4f / %.4f\n",
+                n0.blocks.blocks, n0.blocks.worst, nb.blocks.worst, nr.blocks.worst, n0.steps.faces, n0.steps.worst, nb.steps.worst,
+                nr.steps.worst, n0.blocks.tintWorst, nb.blocks.tintWorst, nr.blocks.tintWorst);
+    EXPECT_GT(n0.blocks.blocks, 100u);
+    EXPECT_GT(n0.steps.faces, 2u);
+    EXPECT_EQ(n0.blocks.worst, 0.0);
+    EXPECT_EQ(n0.blocks.tintWorst, 0.0);
+    EXPECT_EQ(n0.steps.worst, 0.0);
+    // Brighter: a block wholly in the injected half is 30% off; a face between the halves steps by
+    // 0.3 L_a / ((2.3 L_a + 2 L_b) / 4) (0.26 where both sides are alike); the colour changes only in blocks
+    // that straddle the halves and mix surfaces of different colours unequally.
+    EXPECT_NEAR(nb.blocks.worst, 0.3, 0.002);
+    EXPECT_GT(nb.blocks.rms, 0.1);
+    EXPECT_GT(nb.steps.worst, 0.15);
+    EXPECT_LT(nb.blocks.tintWorst, 0.03);
+    // Redder: tinted, and seen as such.
+    EXPECT_GT(nr.blocks.tintWorst, 0.1);
+    EXPECT_GT(nr.blocks.tintRms, 0.03);
 }
 
 TEST(Validate, SeamFigureOfAKnownJumpAndTheBorderRegion) {
