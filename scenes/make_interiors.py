@@ -53,6 +53,30 @@ def wall_face(x, normal, door):
     return [rect(0, DOOR_Z[0], 0, HEIGHT), rect(DOOR_Z[1], DEPTH, 0, HEIGHT), rect(DOOR_Z[0], DOOR_Z[1], DOOR_H, HEIGHT)]
 
 
+def write_gltf(name, builder, prims, materials, camera, yfov_degrees):
+    """Writes scenes/NAME/NAME.gltf: one mesh of `prims` and the camera node `camera`."""
+    doc = {
+        "asset": {"version": "2.0", "generator": "nrad scenes/make_interiors.py"},
+        "extensionsUsed": sorted({e for m in materials for e in m.get("extensions", {})}),
+        "scene": 0,
+        "scenes": [{"name": name, "nodes": [0, 1]}],
+        "nodes": [{"name": name, "mesh": 0}, camera],
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": math.radians(yfov_degrees), "aspectRatio": 4.0 / 3.0, "znear": 0.01}}],
+        "meshes": [{"name": name, "primitives": prims}],
+        "materials": materials,
+        "accessors": builder.accessors,
+        "bufferViews": builder.views,
+        "buffers": [{"byteLength": len(builder.blob),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(builder.blob)).decode()}],
+    }
+    folder = os.path.join(HERE, name)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, name + ".gltf"), "w") as f:
+        json.dump(doc, f, indent=1)
+        f.write("\n")
+
+
 def write(name, door):
     b = cb.Builder()
     materials = [cb.material("grey", GREY), cb.material("light", GREY, emission=LIGHT_RADIANCE)]
@@ -76,26 +100,7 @@ def write(name, door):
     yaw = math.radians(90.0 + 8.0)
     camera = {"name": "camera", "camera": 0, "translation": [(b1 - 600.0) * cb.MM, 1500.0 * cb.MM, 2600.0 * cb.MM],
               "rotation": [0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2)]}
-    doc = {
-        "asset": {"version": "2.0", "generator": "nrad scenes/make_interiors.py"},
-        "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_specular"],
-        "scene": 0,
-        "scenes": [{"name": name, "nodes": [0, 1]}],
-        "nodes": [{"name": "rooms", "mesh": 0}, camera],
-        "cameras": [{"type": "perspective",
-                     "perspective": {"yfov": math.radians(60.0), "aspectRatio": 4.0 / 3.0, "znear": 0.01}}],
-        "meshes": [{"name": "rooms", "primitives": prims}],
-        "materials": materials,
-        "accessors": b.accessors,
-        "bufferViews": b.views,
-        "buffers": [{"byteLength": len(b.blob),
-                     "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(b.blob)).decode()}],
-    }
-    folder = os.path.join(HERE, name)
-    os.makedirs(folder, exist_ok=True)
-    with open(os.path.join(folder, name + ".gltf"), "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
+    write_gltf(name, b, prims, materials, camera, 60.0)
 
 
 def wall_with_openings(axis, at, normal, u_range, v_range, openings):
@@ -181,26 +186,7 @@ def write_sky_room():
          qy[3] * qx[2] + qy[0] * qx[1] - qy[1] * qx[0] + qy[2] * qx[3],
          qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2])
     camera = {"name": "camera", "camera": 0, "translation": [4600.0 * cb.MM, 1600.0 * cb.MM, 4400.0 * cb.MM], "rotation": list(q)}
-    doc = {
-        "asset": {"version": "2.0", "generator": "nrad scenes/make_interiors.py"},
-        "extensionsUsed": ["KHR_materials_specular"],
-        "scene": 0,
-        "scenes": [{"name": "sky-room", "nodes": [0, 1]}],
-        "nodes": [{"name": "room", "mesh": 0}, camera],
-        "cameras": [{"type": "perspective",
-                     "perspective": {"yfov": math.radians(65.0), "aspectRatio": 4.0 / 3.0, "znear": 0.01}}],
-        "meshes": [{"name": "room", "primitives": prims}],
-        "materials": [cb.material("grey", GREY)],
-        "accessors": b.accessors,
-        "bufferViews": b.views,
-        "buffers": [{"byteLength": len(b.blob),
-                     "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(b.blob)).decode()}],
-    }
-    folder = os.path.join(HERE, "sky-room")
-    os.makedirs(folder, exist_ok=True)
-    with open(os.path.join(folder, "sky-room.gltf"), "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
+    write_gltf("sky-room", b, prims, [cb.material("grey", GREY)], camera, 65.0)
 
 
 if __name__ == "__main__":
