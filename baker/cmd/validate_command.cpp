@@ -141,6 +141,8 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         // What the eye sees: the light's shape and colour on the surfaces (the SH probes' in brackets).
         const bool b = r.baseline.has_value();
         const MethodResult* sh = b ? &*r.baseline : nullptr;
+        std::printf("  what the eye sees: SSIM %.4f%s at the viewer's exposure (%+.1f stops)\n", n.metrics.ssim,
+                    b ? (" [" + fmtG(sh->metrics.ssim) + "]").c_str() : "", n.metrics.ssimExposure);
         std::printf("  what the eye sees (%zu surface pixels): relMSE %.3g%s; %dx%d-pixel blocks (%zu): luminance error rms %.3g, "
                     "worst %.3g%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
                     "worst %.3g\n",

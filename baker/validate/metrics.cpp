@@ -26,6 +26,48 @@ double srgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 
 
 double luminance(const glm::vec3& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
 
+// Separable Gaussian blur (sigma 1.5, 11 taps, normalised; edges clamped) of a w x h plane.
+std::vector<double> gaussian11(const std::vector<double>& in, int w, int h) {
+    double k[11], sum = 0.0;
+    for (int i = 0; i < 11; ++i) sum += k[i] = std::exp(-double((i - 5) * (i - 5)) / (2.0 * 1.5 * 1.5));
+    for (double& v : k) v /= sum;
+    std::vector<double> tmp(in.size()), out(in.size());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0.0;
+            for (int i = 0; i < 11; ++i) s += k[i] * in[size_t(y) * size_t(w) + size_t(std::clamp(x + i - 5, 0, w - 1))];
+            tmp[size_t(y) * size_t(w) + size_t(x)] = s;
+        }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0.0;
+            for (int i = 0; i < 11; ++i) s += k[i] * tmp[size_t(std::clamp(y + i - 5, 0, h - 1)) * size_t(w) + size_t(x)];
+            out[size_t(y) * size_t(w) + size_t(x)] = s;
+        }
+    return out;
+}
+
+// Mean SSIM of the two images' luminances displayed at `gain` (sRGB-encoded, clamped to [0, 1]).
+double ssim(const Image& image, const Image& reference, double gain) {
+    const int w = reference.width, h = reference.height;
+    const size_t n = reference.pixels.size();
+    if (n == 0) return 1.0;
+    std::vector<double> x(n), y(n), xx(n), yy(n), xy(n);
+    for (size_t i = 0; i < n; ++i) {
+        const double a = tonemap(luminance(image.pixels[i]), gain), b = tonemap(luminance(reference.pixels[i]), gain);
+        x[i] = a, y[i] = b, xx[i] = a * a, yy[i] = b * b, xy[i] = a * b;
+    }
+    const std::vector<double> mx = gaussian11(x, w, h), my = gaussian11(y, w, h), sxx = gaussian11(xx, w, h),
+                              syy = gaussian11(yy, w, h), sxy = gaussian11(xy, w, h);
+    constexpr double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+    double sum = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const double vx = std::max(0.0, sxx[i] - mx[i] * mx[i]), vy = std::max(0.0, syy[i] - my[i] * my[i]), cov = sxy[i] - mx[i] * my[i];
+        sum += (2.0 * mx[i] * my[i] + c1) * (2.0 * cov + c2) / ((mx[i] * mx[i] + my[i] * my[i] + c1) * (vx + vy + c2));
+    }
+    return sum / double(n);
+}
+
 }  // namespace
 
 ImageMetrics compareImages(const Image& image, const Image& reference, float exposure) {
@@ -50,7 +92,20 @@ ImageMetrics compareImages(const Image& image, const Image& reference, float exp
     m.relMse = rel / count;
     m.meanRelativeError = mre / count;
     m.psnr = tse > 0.0 ? 10.0 * std::log10(count / tse) : std::numeric_limits<double>::infinity();
+    m.ssimExposure = viewerExposure(reference);
+    m.ssim = ssim(image, reference, std::exp2(m.ssimExposure));
     return m;
+}
+
+double viewerExposure(const Image& image) {
+    if (image.pixels.empty()) return 0.0;
+    double sum = 0.0;
+    for (const glm::vec3& p : image.pixels) {
+        const double l = luminance(p);
+        sum += std::log(1e-6 + (std::isfinite(l) && l > 0.0 ? l : 0.0));
+    }
+    const double average = std::exp(sum / double(image.pixels.size()));
+    return std::clamp(std::log2(0.18 / average), -64.0, 64.0);
 }
 
 Image squaredDifferenceImage(const Image& image, const Image& reference, float scale) {

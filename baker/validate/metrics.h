@@ -14,7 +14,17 @@ struct ImageMetrics {
     double relMse = 0.0;  // mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)
     double psnr = 0.0;  // dB, of the tonemapped (exposure, clamp, sRGB) 8-bit-range images; inf if identical
     double meanRelativeError = 0.0;  // mean of |x - ref| / (|ref| + 0.01)
+    // Structural similarity (Wang et al. 2004: 11 x 11 Gaussian window of sigma 1.5, C1 = 0.01^2, C2 = 0.03^2,
+    // edges clamped, the mean over every pixel) of the luminances as displayed at the exposure a viewer adapts
+    // to: the reference's log-average luminance mapped to middle grey (0.18), then sRGB-encoded and clamped;
+    // 1 = identical. ssimExposure: that exposure in stops (whatever --exposure says: a dark room is judged as
+    // the eye, adapted to it, sees it).
+    double ssim = 1.0;
+    double ssimExposure = 0.0;
 };
+
+// The exposure, in stops, that maps the image's log-average luminance to middle grey (0.18).
+double viewerExposure(const Image& image);
 
 // Throws std::invalid_argument if the sizes differ. Non-finite pixels count as an error of the reference
 // value (they should never occur; see NeuralRenderStats / RenderStats).

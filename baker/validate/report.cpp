@@ -38,7 +38,8 @@ std::string escape(const std::string& s) {
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 nlohmann::json metricsJson(const ImageMetrics& m) {
-    return {{"rmse", num(m.rmse)}, {"relmse", num(m.relMse)}, {"psnr_db", num(m.psnr)}, {"mean_relative_error", num(m.meanRelativeError)}};
+    return {{"rmse", num(m.rmse)}, {"relmse", num(m.relMse)}, {"psnr_db", num(m.psnr)}, {"mean_relative_error", num(m.meanRelativeError)},
+            {"ssim", num(m.ssim)}, {"ssim_exposure_stops", num(m.ssimExposure)}};
 }
 
 nlohmann::json methodJson(const MethodResult& m) {
@@ -139,7 +140,10 @@ std::string headlineSentence(const ValidationResult& r) {
     }
     const MethodResult& n = r.neural;
     if (n.surfaces.pixels > 0 && !referenceIsBlack(r)) {
-        s << " What the eye sees, over the " << n.surfaces.pixels << " pixels on surfaces: relMSE " << fmt("%.3g", n.surfaces.relMse);
+        s << " What the eye sees: SSIM " << fmt("%.4f", n.metrics.ssim) << " at the exposure a viewer adapts to ("
+          << fmt("%+.1f", n.metrics.ssimExposure) << " stops)";
+        if (r.baseline) s << " (SH probes " << fmt("%.4f", r.baseline->metrics.ssim) << ")";
+        s << "; over the " << n.surfaces.pixels << " pixels on surfaces, relMSE " << fmt("%.3g", n.surfaces.relMse);
         if (n.blocks.blocks > 0)
             s << "; averaged over " << n.blocks.blockSize << " x " << n.blocks.blockSize << "-pixel blocks the light is off by "
               << fmt("%.3g", n.blocks.rms) << " rms (worst block " << fmt("%.3g", n.blocks.worst) << ") and tinted by "

@@ -146,6 +146,35 @@ TEST(Metrics, BlockFigureSeesABlockBiasAndATintThatRelMseCallsSmall) {
     EXPECT_EQ(blockFigure(reference, dark, mask, 16).blocks, 14u);
 }
 
+TEST(Metrics, SsimAtTheViewersExposureOfKnownImages) {
+    // Constant images: no structure, SSIM is its luminance term (2 a b + C1) / (a^2 + b^2 + C1) of the displayed
+    // values. The viewer's exposure maps the reference's luminance r to 0.18 whatever r is.
+    auto srgb = [](double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055; };
+    for (float r : {0.001f, 1.0f, 500.0f}) {
+        Image reference(40, 30), image(40, 30);
+        for (glm::vec3& p : reference.pixels) p = glm::vec3(r);
+        for (glm::vec3& p : image.pixels) p = glm::vec3(1.5f * r);
+        ImageMetrics same = compareImages(reference, reference);
+        EXPECT_NEAR(same.ssim, 1.0, 1e-12);
+        EXPECT_NEAR(same.ssimExposure, std::log2(0.18 / (1e-6 + double(r))), 1e-5) << r;
+        ImageMetrics m = compareImages(image, reference);
+        const double a = srgb(0.18 * 1.5 * double(r) / (1e-6 + double(r))), b = srgb(0.18 * double(r) / (1e-6 + double(r)));
+        EXPECT_NEAR(m.ssim, (2.0 * a * b + 1e-4) / (a * a + b * b + 1e-4), 1e-6) << r;
+    }
+    // Structure: a checkerboard of 4-pixel squares against a flat grey of the same mean loses the structure
+    // term (SSIM far below 1); the same checkerboard 1% brighter keeps it (SSIM near 1).
+    Image board(64, 64), flat(64, 64), brighter(64, 64);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) {
+            const float v = ((x / 4 + y / 4) % 2) ? 0.3f : 0.1f;
+            board.at(x, y) = glm::vec3(v);
+            brighter.at(x, y) = glm::vec3(1.01f * v);
+            flat.at(x, y) = glm::vec3(0.2f);
+        }
+    EXPECT_LT(compareImages(flat, board).ssim, 0.2);
+    EXPECT_GT(compareImages(brighter, board).ssim, 0.99);
+}
+
 TEST(Metrics, StepFigureSeesAJumpAtACellFaceButNotAUniformBias) {
     // Two cells side by side (x < 20: cell 3, else cell 7), a third below (y >= 40: cell 9); the reference is
     // constant, so a pixel pair's reference jump is 0 and the image's jump is the step.
