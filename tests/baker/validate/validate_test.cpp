@@ -100,6 +100,29 @@ TEST(Metrics, ErrorDistributionAndRegionsOfKnownImages) {
     EXPECT_THROW(relMseByRegion(img, ref, std::vector<int>(3, 0), 2), std::invalid_argument);
 }
 
+// A quick bake of `scene` on a 2 x 2 x 2 grid (two threads), for the validation tests.
+std::vector<uint8_t> quickBake(const Scene& scene, uint32_t points, uint32_t paths, int epochs, float blendBand = 0.0625f) {
+    BakeSettings b;
+    b.grid = glm::uvec3(2);
+    b.samples.points = points;
+    b.samples.paths = paths;
+    b.train.epochs = epochs;
+    b.train.patience = epochs;
+    b.blendBand = blendBand;
+    return test::bakeBytes(scene, b, 2);
+}
+
+// A tiny validation of scene.cameras[0]: `width` pixels wide, a one-point convergence curve.
+ValidateSettings tinyValidation(const Scene& scene, int width, int referenceSpp, int neuralSpp) {
+    ValidateSettings s;
+    s.camera = scene.cameras[0];
+    s.width = width;
+    s.referenceSpp = referenceSpp;
+    s.curveMaxSpp = 1;
+    s.neuralSpp = neuralSpp;
+    return s;
+}
+
 // What the eye sees (issue 38): block, tint and step figures of images with a known bias.
 TEST(Metrics, BlockFigureSeesABlockBiasAndATintThatRelMseCallsSmall) {
     // A grey reference of 64 x 64 pixels, 16 blocks of 16 x 16; every pixel masked but the top-left block's one.
@@ -217,14 +240,7 @@ TEST(Validate, AnAssetWithAnInjectedBiasOrTintIsFlagged) {
     // with a 30% brighter output (the voxels' scale: a block bias with a step at the x mid-plane), and with a
     // 30% redder one (the last layer's red row and bias, where the red output is positive: a tint).
     Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
-    BakeSettings b;
-    b.grid = glm::uvec3(2);
-    b.samples.points = 4000;
-    b.samples.paths = 4;
-    b.train.epochs = 30;
-    b.train.patience = 30;
-    b.blendBand = 0.0f;  // a step, not a blended ramp
-    const std::vector<uint8_t> bytes = test::bakeBytes(scene, b, 2);
+    const std::vector<uint8_t> bytes = quickBake(scene, 4000, 4, 30, 0.0f);  // band 0: a step, not a blended ramp
     format::Asset decoded;
     ASSERT_EQ(format::decode(bytes.data(), bytes.size(), decoded), format::DecodeStatus::Ok);
     const size_t params = decoded.weights.size() / decoded.voxels.size();
@@ -233,12 +249,7 @@ TEST(Validate, AnAssetWithAnInjectedBiasOrTintIsFlagged) {
     auto validateBytes = [&](const std::vector<uint8_t>& asset, const std::string& reference) {
         NradAsset a = nullptr;
         EXPECT_EQ(nradLoadFromMemory(asset.data(), asset.size(), NRAD_LOAD_COPY, &a, nullptr, 0), NRAD_OK);
-        ValidateSettings s;
-        s.camera = scene.cameras[0];
-        s.width = 96;
-        s.referenceSpp = 1;
-        s.curveMaxSpp = 1;
-        s.neuralSpp = 2;
+        ValidateSettings s = tinyValidation(scene, 96, 1, 2);
         s.baseline = false;
         s.referenceImage = reference;
         ValidationResult r = runValidation(scene, "", a, "", s);
@@ -531,21 +542,10 @@ TEST(Validate, BaselineTrainsOnABudgetPerProbeTheSameForAnyThreads) {
     // A small Cornell box bake; its baseline regenerates the bake's samples, the first `perProbe` x probes of
     // its points (plus the sampling floor), and is byte-identical for one thread and several.
     Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
-    BakeSettings b;
-    b.grid = glm::uvec3(2);
-    b.samples.points = 20000;
-    b.samples.paths = 2;
-    b.train.epochs = 20;
-    b.train.patience = 20;
-    const std::vector<uint8_t> bytes = test::bakeBytes(scene, b, 2);
+    const std::vector<uint8_t> bytes = quickBake(scene, 20000, 2, 20);
     NradAsset asset = nullptr;
     ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
-    ValidateSettings s;
-    s.camera = scene.cameras[0];
-    s.width = 24;
-    s.referenceSpp = 2;
-    s.curveMaxSpp = 1;
-    s.neuralSpp = 1;
+    ValidateSettings s = tinyValidation(scene, 24, 2, 1);
     s.baselinePointsPerProbe = 20;
     s.baselineMinPoints = 0;
     std::vector<std::string> lines;
