@@ -186,17 +186,38 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
     // budget the leaves of the adaptive tree, refined on these very samples.
     const float band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
     std::vector<std::vector<VoxelSample>> byVoxel;
-    const bool adaptive = settings.partition.budgetBytes > 0;
+    const bool budgeted = settings.partition.budgetBytes > 0;
     format::Grid lattice = grid.grid();
     MetadataReserve reserve;
     auto tPartition = std::chrono::steady_clock::now();
-    if (adaptive) {
-        lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
-        std::vector<float> learned(samples.size());
+    std::vector<float> learned;  // what the partition sees of a sample: log(0.1 + its learned luminance)
+    if (budgeted || settings.walls.enabled) {
+        learned.resize(samples.size());
         for (size_t i = 0; i < samples.size(); ++i) {
             const glm::vec3 y = settings.train.demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
             learned[i] = float(std::log(std::max(0.0, luminance(y)) + 0.1));
         }
+    }
+    bool walled = false;  // the grid with its cells split at walls: a tree on a finer lattice
+    if (!budgeted && settings.walls.enabled) {
+        AdaptivePartition ap = splitWalls(grid.grid(), samples, learned, settings.walls);
+        const format::Grid& g = grid.grid();
+        if (ap.leafCount > g.dims[0] * g.dims[1] * g.dims[2]) {
+            walled = true;
+            result.partition = std::move(ap);
+            lattice = g;
+            for (int k = 0; k < 3; ++k) lattice.dims[k] = g.dims[k] * wallRefine(g);
+        }
+    }
+    const bool adaptive = budgeted || walled;  // the cells are a tree's leaves
+    if (walled) {
+        const AdaptivePartition& ap = result.partition;
+        const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
+        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
+            return positionInCell(partition, ap, true, grid, samples[i].position, ap.leafOfSample[i]);
+        });
+    } else if (budgeted) {
+        lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         // The metadata, exactly: a budgeted asset's metadata leaves out the per-network error list (--stats has
         // it), so it depends on nothing that refining changes.
         BakeResult none;
@@ -346,7 +367,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
 
     assemble();
     const format::Asset& a = result.asset;
-    if (adaptive) {
+    if (budgeted) {
         const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size());
         if (a.metadata.size() > reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
             throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
@@ -395,6 +416,10 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                                   {"budget_bytes", settings.partition.budgetBytes},
                                   {"levels", settings.partition.levels},
                                   {"min_leaf_samples", settings.partition.minLeafSamples}};
+    else if (result.partition.leafCount > 0)  // the grid split at walls (only then, so that grid assets keep their bytes)
+        j["bake"]["partition"] = {{"kind", "grid-walls"},
+                                  {"wall_min_gain", settings.walls.minGainPerSample},
+                                  {"wall_splits", result.partition.leafCount - settings.grid.x * settings.grid.y * settings.grid.z}};
     nlohmann::json engine = nlohmann::json::array();
     for (size_t i = 0; i < scene.lights.size(); ++i)
         if (scene.lights[i].runtimeDirect) engine.push_back({{"light", i}, {"name", scene.lights[i].name}});

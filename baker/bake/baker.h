@@ -56,6 +56,8 @@ struct BakeSettings {
     // With a byte budget, an adaptive kd-tree partition replaces the grid (partition.h); `grid` then only sets
     // the per-voxel floor of training samples.
     PartitionSettings partition;
+    // Without a budget: the grid's cells split at walls (partition.h), so that no network holds both sides.
+    WallSplitSettings walls;
     SampleSettings samples;
     TrainSettings train;
     TrainingMethod training = TrainingMethod::MonteCarlo;

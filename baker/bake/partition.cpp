@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <queue>
 #include <stdexcept>
 #include <string>
@@ -26,7 +27,6 @@ namespace {
 constexpr int kFeatures = 10;  // 1, position (3), normal (3), direction (3)
 constexpr int kMoments = kFeatures * (kFeatures + 1) / 2;
 constexpr size_t kMaxStatSamples = 8192;  // a split's statistics from at most this many of a cell's samples
-constexpr uint32_t kCandidateBins = 8;  // candidate planes at the eighths of each axis
 
 // Sufficient statistics of a least-squares fit: sum f f^T (upper triangle), sum f y, sum y^2, count.
 struct Moments {
@@ -93,6 +93,7 @@ struct Moments {
 struct BuildCell {
     format::TreeBox box;
     uint32_t depth = 0;
+    uint32_t extra = 0;  // with PartitionSettings::gridRefine: tree levels under the grid's cell
     std::vector<uint32_t> samples;
     double residual = 0.0;
     int lower = -1, upper = -1;
@@ -138,6 +139,7 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         return format::encodedSize(topology, networks, nodes, reserve.bytes(networks));
     };
 
+    bool buildingGrid = settings.gridRefine > 0;  // while the grid's cells are cut (no other split meanwhile)
     std::vector<BuildCell> cells(1);
     for (int k = 0; k < 3; ++k) cells[0].box.hi[k] = lattice.dims[k];
     cells[0].samples.resize(n);
@@ -151,8 +153,9 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         std::vector<uint32_t> planes[3];
         for (int k = 0; k < 3; ++k) {
             const uint32_t lo = c.box.lo[k], extent = c.box.hi[k] - c.box.lo[k];
-            for (uint32_t j = 1; j < kCandidateBins; ++j) {
-                const uint32_t plane = lo + uint32_t((uint64_t(extent) * j + kCandidateBins / 2) / kCandidateBins);
+            const uint32_t bins = std::max(1u, settings.candidatePlanes) + 1;
+            for (uint32_t j = 1; j < bins; ++j) {
+                const uint32_t plane = lo + uint32_t((uint64_t(extent) * j + bins / 2) / bins);
                 if (plane > lo && plane < c.box.hi[k] && (planes[k].empty() || planes[k].back() != plane)) planes[k].push_back(plane);
             }
         }
@@ -167,8 +170,9 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
             const bool used = j % stride == 0;
             for (int k = 0; k < 3; ++k) {
                 const float tk = t[3 * size_t(i) + size_t(k)];
-                size_t bin = 0;
-                while (bin < planes[k].size() && tk >= float(planes[k][bin])) ++bin;
+                const size_t bin = size_t(std::upper_bound(planes[k].begin(), planes[k].end(), tk,
+                                                            [](float v, uint32_t plane) { return v < float(plane); }) -
+                                           planes[k].begin());
                 ++binCount[k][bin];
                 if (used) bins[k][bin].add(&features[kFeatures * size_t(i)], learned[i]);
             }
@@ -196,7 +200,10 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
                 }
             }
         }
-        if (c.canSplit && !(c.bestGain > 0.0)) c.canSplit = false;
+        if (c.canSplit && !(c.bestGain > 0.0 && c.bestGain >= settings.minGainPerSample * double(count) &&
+                            c.bestGain >= settings.minResidualShare * c.residual))
+            c.canSplit = false;
+        if (settings.gridRefine > 0 && (buildingGrid || c.extra >= settings.maxExtraDepth)) c.canSplit = false;
     };
 
     AdaptivePartition out;
@@ -228,6 +235,7 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         lo.box.hi[c.bestAxis] = c.bestSplit;
         hi.box.lo[c.bestAxis] = c.bestSplit;
         lo.depth = hi.depth = c.depth + 1;
+        lo.extra = hi.extra = buildingGrid ? 0 : c.extra + 1;
         for (uint32_t i : c.samples)
             (t[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
         std::vector<uint32_t>().swap(c.samples);
@@ -247,7 +255,41 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
     const uint64_t fixed = bytesOf(0, 1);
     const uint64_t affordable = settings.budgetBytes > fixed ? (settings.budgetBytes - fixed) / perNetworkOnly : 0;
     const uint64_t phaseOne = scorer ? std::max<uint64_t>(1, uint64_t(double(affordable) * settings.residualShare)) : UINT64_MAX;
-    push(0);
+    if (settings.gridRefine > 0) {
+        // The grid first: each cell wider than one grid voxel is cut at its middle multiple of gridRefine along
+        // its widest axis (in grid voxels), whatever the gain, until the leaves are the grid's voxels.
+        const uint32_t g = settings.gridRefine;
+        std::vector<uint32_t> open{0}, leaves;
+        while (!open.empty()) {
+            const uint32_t id = open.back();
+            open.pop_back();
+            BuildCell& c = cells[id];
+            uint32_t axis = 0, widest = 0;
+            for (uint32_t k = 0; k < 3; ++k) {
+                const uint32_t w = (c.box.hi[k] - c.box.lo[k]) / g;
+                if (w > widest) widest = w, axis = k;
+            }
+            if (widest <= 1) {
+                leaves.push_back(id);
+                continue;
+            }
+            c.bestAxis = axis;
+            c.bestSplit = c.box.lo[axis] + g * (widest / 2);
+            size_t lo = 0;
+            for (uint32_t i : c.samples) lo += t[3 * size_t(i) + axis] < float(c.bestSplit) ? 1 : 0;
+            c.bestMakesNetwork = lo > 0 && lo < c.samples.size();
+            if (!split(id)) throw std::logic_error("refinePartition: the grid does not fit the budget");
+            open.push_back(uint32_t(cells.size() - 1));
+            open.push_back(uint32_t(cells.size() - 2));
+        }
+        buildingGrid = false;
+        for (uint32_t id : leaves) {
+            evaluate(cells[id]);
+            push(id);
+        }
+    } else {
+        push(0);
+    }
     while (!queue.empty() && networks < phaseOne) {
         const Candidate best = queue.top();
         queue.pop();
@@ -313,6 +355,31 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
     Emit{cells, out}(0, 0);
     out.bytes = bytesOf(out.networks, out.tree.size());
     return out;
+}
+
+uint32_t wallRefine(const format::Grid& grid) {
+    const uint32_t widest = std::max({grid.dims[0], grid.dims[1], grid.dims[2], 1u});
+    uint32_t refine = 1;
+    while (refine < 256 && widest * refine * 2 <= format::kMaxGridDim) refine *= 2;
+    return refine;
+}
+
+AdaptivePartition splitWalls(const format::Grid& grid, const std::vector<TrainingSample>& samples, const std::vector<float>& learned,
+                             const WallSplitSettings& settings) {
+    format::Grid lattice = grid;
+    const uint32_t refine = wallRefine(grid);
+    for (int k = 0; k < 3; ++k) lattice.dims[k] = grid.dims[k] * refine;
+    PartitionSettings ps;
+    ps.budgetBytes = std::numeric_limits<uint64_t>::max();
+    ps.minLeafSamples = settings.minSideSamples;
+    ps.measured = false;
+    ps.candidatePlanes = refine - 1;  // every plane of the lattice
+    ps.minGainPerSample = settings.minGainPerSample;
+    ps.minResidualShare = settings.minResidualShare;
+    ps.gridRefine = refine;
+    ps.maxExtraDepth = settings.maxSplitsPerCell;
+    format::Topology any;  // bytes are not limited here
+    return refinePartition(lattice, samples, learned, any, ps, MetadataReserve{});
 }
 
 }  // namespace nrad

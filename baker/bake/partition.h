@@ -29,6 +29,16 @@ struct PartitionSettings {
     // goes, a quarter of the open leaves per round, to the leaves whose briefly trained networks err most.
     double residualShare = 0.5;
     bool measured = true;  // refine by measured network error after the residual share (else by the residual alone)
+    uint32_t candidatePlanes = 7;  // per axis and cell, evenly spaced on the lattice
+    // A split is a candidate only where it removes at least this much of the residual per sample of the cell
+    // (0: any gain).
+    double minGainPerSample = 0.0;
+    double minResidualShare = 0.0;  // ... and at least this share of the cell's residual
+    // > 0: the lattice is a uniform grid's cells each gridRefine lattice voxels wide, and the tree starts as
+    // that grid (every cell is a leaf before any other split); refinement then adds at most maxExtraDepth levels
+    // under a grid cell.
+    uint32_t gridRefine = 0;
+    uint32_t maxExtraDepth = format::kMaxTreeDepth;
 };
 
 // The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).
@@ -70,5 +80,27 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
                                   const std::vector<float>& learned, const format::Topology& topology,
                                   const PartitionSettings& settings, const MetadataReserve& reserve,
                                   const LeafScorer& scorer = {});
+
+// Walls inside the cells of a uniform grid (issue 38): where one voxel holds both sides of a thin wall (a lit
+// room's floor beside a dark room's, 2 cm apart), its network must learn a step in position it cannot
+// represent, and the lit side's light leaks across as a bright band with a false tint. The grid's cells are
+// split, on a lattice wallRefine() times finer (every plane of it a candidate), at the axis-aligned planes that
+// remove at least minGainPerSample of the residual of the cell's linear fit (refinePartition's) per sample and
+// at least minResidualShare of it: a step between two sides (0.04 per sample is a step of 0.4 in log luminance
+// where a tenth of the samples lie beyond it), not a gradient, which the fit explains. At most
+// maxSplitsPerCell levels under a grid cell, each side keeping minSideSamples.
+struct WallSplitSettings {
+    bool enabled = true;
+    double minGainPerSample = 0.04;  // residual of log(0.1 + luminance) removed per sample
+    double minResidualShare = 0.3;  // ... and this share of the cell's residual at least
+    uint32_t maxSplitsPerCell = 2;  // tree levels under a grid cell
+    uint32_t minSideSamples = 256;
+};
+// The lattice refinement for a grid: the largest power of two (at most 256) keeping every axis within kMaxGridDim.
+uint32_t wallRefine(const format::Grid& grid);
+// The grid `grid` as a tree on a lattice wallRefine(grid) times finer, its cells split at walls. The result has
+// leafCount == the grid's voxel count when no wall was found (then the plain grid is the same partition).
+AdaptivePartition splitWalls(const format::Grid& grid, const std::vector<TrainingSample>& samples, const std::vector<float>& learned,
+                             const WallSplitSettings& settings);
 
 }  // namespace nrad

@@ -194,6 +194,33 @@ double shadedError(const Mlp& mlp, MlpBatchWorkspace& ws, const PreparedSamples&
     return w > 0.0 ? e / w : 0.0;
 }
 
+// Whether every target of the network is grey (its three channels within 1e-4 of their mean): no colour to learn.
+bool greyTargets(const PreparedSamples& d) {
+    for (const glm::vec3& t : d.targets) {
+        const float m = (t.x + t.y + t.z) / 3.0f, tol = 1e-4f * std::abs(m);
+        if (std::abs(t.x - m) > tol || std::abs(t.y - m) > tol || std::abs(t.z - m) > tol) return false;
+    }
+    return true;
+}
+
+// The output layer's three rows (weights and bias) replaced by their mean: the network then outputs the mean of
+// its channels in each, grey, with a luminance error no larger than the channels' mean error (convexity).
+void averageOutputs(std::vector<float>& params, const NetworkShape& shape) {
+    const size_t nOut = size_t(shape.outputs), in = size_t(shape.hidden.back()), n = params.size();
+    float* W = &params[n - nOut - nOut * in];
+    float* b = &params[n - nOut];
+    for (size_t j = 0; j < in; ++j) {
+        float m = 0.0f;
+        for (size_t o = 0; o < nOut; ++o) m += W[o * in + j];
+        m /= float(nOut);
+        for (size_t o = 0; o < nOut; ++o) W[o * in + j] = m;
+    }
+    float mb = 0.0f;
+    for (size_t o = 0; o < nOut; ++o) mb += b[o];
+    mb /= float(nOut);
+    for (size_t o = 0; o < nOut; ++o) b[o] = mb;
+}
+
 // One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
 // parameter but the output biases (added to each step's mean gradient), from the initialisation of `restart`
 // (0: the first).
@@ -392,6 +419,18 @@ VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entr
                                 (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
             if (better) best = std::move(r);
         }
+    if (settings.greyWhereGrey && !best.params.empty()) {
+        // After the choice (which stays the one made on the channels): grey where every target is.
+        const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
+        if (greyTargets(d)) {
+            averageOutputs(best.params, settings.shape);
+            Mlp mlp(settings.shape);
+            mlp.parameters() = best.params;
+            MlpBatchWorkspace bws;
+            best.heldOutRelMse = shadedError(mlp, bws, d, d.evalSet(), settings, best.transform, best.scale);
+            best.trainRelMse = shadedError(mlp, bws, d, d.train, settings, best.transform, best.scale);
+        }
+    }
     best.seconds = seconds;
     return best;
 }

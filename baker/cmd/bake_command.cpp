@@ -66,7 +66,7 @@ struct BakeOptions {
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
-    bool quiet = false, noMetadata = false, noDemodulate = false;
+    bool quiet = false, noMetadata = false, noDemodulate = false, noWallSplits = false;
     LightingOptions lighting;
     std::string training = trainingMethodName(defaults().training);
     IntegralSettings integral = defaults().integral;
@@ -143,7 +143,8 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                                           "blend_band", "weight_decay", "environment", "environment_intensity",
                                           "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct",
                                           "budget", "levels", "min_leaf_samples", "training", "generations",
-                                          "generation_points", "generation_paths", "generation_epochs", "bounces", "start_epochs"};
+                                          "generation_points", "generation_paths", "generation_epochs", "bounces", "start_epochs",
+                                          "start_restarts", "wall_splits"};
             for (auto& [key, value] : cfg.items())
                 if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                     throw std::runtime_error("unknown key '" + key + "'");
@@ -160,6 +161,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             take("start_epochs", "--start-epochs", o.integral.startEpochs);
             take("start_restarts", "--start-restarts", o.integral.startRestarts);
             take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
+            if (cfg.contains("wall_splits") && cmd->count("--no-wall-splits") == 0) o.noWallSplits = !cfg.at("wall_splits").get<bool>();
             if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
                 o.grid = std::to_string(cfg["grid"].get<int>());
             else
@@ -271,6 +273,14 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     // cut at 6 segments left the rounds light to restore, 3.8x the error after one round on a box of albedo 0.95.)
     // ... and from 1,500 points per grid cell (at least 40,000) unless told (docs/results.md: 750 left the rounds
     // a start they needed many of to undo).
+    // A grid finer than the default's 3 x 3 x 3 and no --points: the default's density, 160,000 points per 27
+    // cells (at most 4 M). At a fixed count each network of --grid 4 or 6 gets 42% or 13% of the samples and
+    // makes a block of its own noise: the doorway's dark wall at --grid 4 went from 8.3% to 4.7% rms
+    // (docs/results.md).
+    if (s.training == TrainingMethod::MonteCarlo && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints) {
+        const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
+        o.points = uint32_t(std::clamp<uint64_t>(uint64_t(o.points) * cells / 27, o.points, 4000000));
+    }
     if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints)
         o.points = uint32_t(std::clamp<uint64_t>(1500ull * s.grid.x * s.grid.y * s.grid.z, 40000, 4000000));
     s.samples.points = o.points;
@@ -286,6 +296,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.train.seed = o.seed;
     s.metadata = !o.noMetadata;
     s.train.demodulate = !o.noDemodulate;
+    s.walls.enabled = !o.noWallSplits;
 
     {
         std::vector<std::string> outputs = {o.output};
@@ -390,6 +401,12 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                     ap.leafCount, ap.networks, deepest, r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2],
                     ap.tree.size(), (unsigned long long)bytes.size(), (unsigned long long)s.partition.budgetBytes, ap.residual,
                     ap.rootResidual);
+    } else if (ap.leafCount > 0) {
+        const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
+        std::printf("partition: the %ux%ux%u grid split at walls where a cell holds a lit and a dark side (%llu splits: %u leaves, "
+                    "%u with surface, on a %ux%ux%u lattice; --no-wall-splits keeps the cells whole)\n",
+                    s.grid.x, s.grid.y, s.grid.z, (unsigned long long)(ap.leafCount - cells), ap.leafCount, ap.networks,
+                    r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]);
     }
 
     if (!o.stats.empty()) {
@@ -473,7 +490,8 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("scene", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("-o,--output", o->output, "Output asset (.nrad)")->required();
     cmd->add_option("--grid", o->grid, "Voxel grid: N (cubic) or NxMxK (default 3)");
-    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 160000)");
+    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 160000, and as many per cell "
+                    "on grids finer than 3x3x3: 160000 x cells / 27, at most 4 M)");
     cmd->add_option("--paths", o->paths, "Paths per training sample (default 32)");
     cmd->add_option("--nee", o->nee,
                     "Light selection of the training paths: power (default), uniform, or learned (a selection network "
@@ -529,6 +547,9 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
     addImportOptions(cmd, o->importLimits);
     cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
+    cmd->add_flag("--no-wall-splits", o->noWallSplits,
+                  "Without --budget: keep the grid's cells whole where a wall divides one (by default such a cell is split at "
+                  "the wall, so that no network holds a lit and a dark room; docs/usage.md)");
     cmd->add_flag("--no-demodulate", o->noDemodulate,
                   "Networks learn the scattered radiance itself, not divided by the surface's reflectance");
     addLightingOptions(cmd, o->lighting);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include <gtest/gtest.h>
 #include <nrad/nrad.hpp>
@@ -146,6 +147,105 @@ TEST(Partition, RefinesAtASharpShadow) {
         const float hi = g.lower[0] + float(l.box.hi[0]) / eval::gridFactor(g, 0);
         EXPECT_TRUE(hi > 0.0f && lo < 2.5f) << lo << " " << hi;
     }
+}
+
+
+// Walls inside a grid's cell (issue 38): a floor lit on one side of a 2 cm wall and dark on the other, in one
+// cell; the cell is split at a plane inside the wall, so that no network holds both sides.
+std::vector<TrainingSample> floorSamples(const std::function<float(float)>& radianceAt, float gapLo, float gapHi) {
+    std::vector<TrainingSample> out;
+    uint32_t state = 12345;
+    auto next = [&] {
+        state = state * 1664525u + 1013904223u;
+        return float(state >> 8) * 0x1p-24f;
+    };
+    while (out.size() < 6000) {
+        TrainingSample t;
+        t.position = glm::vec3(next(), 0.0f, next());
+        if (t.position.x >= gapLo && t.position.x <= gapHi) continue;  // inside the wall: no surface
+        t.normal = glm::vec3(0, 1, 0);
+        t.wo = glm::normalize(glm::vec3(next() - 0.5f, 1.0f, next() - 0.5f));
+        t.radiance = glm::vec3(radianceAt(t.position.x));
+        t.voxel = 0;
+        out.push_back(t);
+    }
+    return out;
+}
+
+std::vector<float> learnedOf(const std::vector<TrainingSample>& samples) {
+    std::vector<float> learned;
+    for (const TrainingSample& t : samples) learned.push_back(std::log(t.radiance.y + 0.1f));
+    return learned;
+}
+
+format::Grid unitGrid() {
+    format::Grid g;
+    g.lower[1] = -0.5f;
+    g.upper[1] = 0.5f;
+    return g;
+}
+
+TEST(Walls, AGridCellIsSplitInsideAThinWallBetweenALitAndADarkSide) {
+    const std::vector<TrainingSample> samples = floorSamples([](float x) { return x < 0.41f ? 1.0f : 0.03f; }, 0.40f, 0.42f);
+    const format::Grid g = unitGrid();
+    const AdaptivePartition ap = splitWalls(g, samples, learnedOf(samples), WallSplitSettings{});
+    ASSERT_EQ(ap.leafCount, 2u);
+    ASSERT_EQ(ap.tree.size(), 3u);
+    EXPECT_EQ(ap.tree[0].axis, 0u);
+    const float plane = float(ap.tree[0].split) / float(wallRefine(g));  // world x (the box is [0, 1])
+    EXPECT_GE(plane, 0.40f);
+    EXPECT_LE(plane, 0.42f);
+    // Every sample in the leaf on its side of the wall.
+    for (size_t i = 0; i < samples.size(); ++i) EXPECT_EQ(ap.leafOfSample[i], samples[i].position.x < 0.41f ? 0u : 1u) << i;
+    // Off: the grid stays whole.
+    WallSplitSettings off;
+    off.minGainPerSample = 1e9;
+    EXPECT_EQ(splitWalls(g, samples, learnedOf(samples), off).leafCount, 1u);
+}
+
+TEST(Walls, SmoothLightIsLeftWhole) {
+    // Light falling off smoothly across the cell (a factor of 4, not linear in x): no split.
+    const std::vector<TrainingSample> smooth = floorSamples([](float x) { return 1.0f / (1.0f + 3.0f * x * x); }, 2.0f, 2.0f);
+    EXPECT_EQ(splitWalls(unitGrid(), smooth, learnedOf(smooth), WallSplitSettings{}).leafCount, 1u);
+    // A step of 20% (no wall, a soft feature): no split either.
+    const std::vector<TrainingSample> soft = floorSamples([](float x) { return x < 0.5f ? 1.0f : 0.8f; }, 2.0f, 2.0f);
+    EXPECT_EQ(splitWalls(unitGrid(), soft, learnedOf(soft), WallSplitSettings{}).leafCount, 1u);
+}
+
+TEST(Walls, TheDoorwayRoomsAreSplitAtTheirWallAndTheBoxesNowhere) {
+    // The bundled boxes have no wall inside a cell: their defaults bake the plain grid, byte for byte as without.
+    BakeSettings s;
+    s.samples.points = 40000;
+    s.samples.paths = 4;
+    s.train.epochs = 20;
+    s.train.patience = 10;
+    s.train.weightDecays = {0.0f};
+    {
+        const Scene box = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+        const BakeResult on = bakeScene(box, s);
+        EXPECT_EQ(on.asset.header.flags & format::kFlagTree, 0u);
+        BakeSettings noWalls = s;
+        noWalls.walls.enabled = false;
+        EXPECT_EQ(format::encode(on.asset), format::encode(bakeScene(box, noWalls).asset));
+    }
+    // Two rooms sharing a wall at x in [2.22, 2.24] m: the cells the wall crosses are split inside it, and every
+    // leaf lies on one side.
+    const Scene rooms = loadGltf(test::sourcePath("scenes/doorway-rooms/doorway-rooms.gltf"));
+    const BakeResult r = bakeScene(rooms, s);
+    ASSERT_NE(r.asset.header.flags & format::kFlagTree, 0u);
+    const format::Grid& g = r.asset.grid;
+    EXPECT_GT(r.partition.leafCount, 27u);
+    int wallPlanes = 0;
+    for (const format::TreeNode& n : r.asset.tree) {
+        if (n.axis != 0) continue;
+        const float x = g.lower[0] + float(n.split) / eval::gridFactor(g, 0);
+        if (n.split % (g.dims[0] / 3) == 0) continue;  // the grid's own planes
+        EXPECT_GE(x, 2.215f);
+        EXPECT_LE(x, 2.245f);
+        ++wallPlanes;
+    }
+    EXPECT_GE(wallPlanes, 3);
+    EXPECT_NE(r.asset.metadata.find("\"grid-walls\""), std::string::npos);
 }
 
 }  // namespace

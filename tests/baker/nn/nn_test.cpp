@@ -314,6 +314,36 @@ TEST(Trainer, RestartsKeepTheLowestHeldOutErrorAndStartFromTheSingleTraining) {
     EXPECT_TRUE(found);
 }
 
+// Grey where grey (TrainSettings::greyWhereGrey): trained on grey targets, a network's three outputs are equal
+// bit for bit (no false tint in a grey scene), and no worse than the channels trained apart; on coloured
+// targets nothing changes.
+TEST(Trainer, GreyTargetsGiveAGreyNetworkNoWorseThanItsChannels) {
+    const VoxelGrid grid = unitVoxel();
+    std::vector<TrainingSample> grey = makeSamples(grid, smooth, 800);
+    for (TrainingSample& t : grey) t.radiance = glm::vec3(t.radiance.y);
+    TrainSettings settings;
+    settings.epochs = 80;
+    settings.weightDecays = {0.0f};
+    const VoxelTrainResult r = trainVoxel(grid, 0, pointersTo(grey), settings);
+    const size_t n = r.params.size(), hidden = size_t(settings.shape.hidden.back());
+    const float* W = &r.params[n - 3 - 3 * hidden];  // the output layer's rows, then its biases
+    for (size_t j = 0; j < hidden; ++j) {
+        EXPECT_EQ(W[j], W[hidden + j]) << j;
+        EXPECT_EQ(W[j], W[2 * hidden + j]) << j;
+    }
+    EXPECT_EQ(r.params[n - 3], r.params[n - 2]);
+    EXPECT_EQ(r.params[n - 3], r.params[n - 1]);
+    // Without it the same training tints (the rows differ), and its error is no lower.
+    TrainSettings apart = settings;
+    apart.greyWhereGrey = false;
+    const VoxelTrainResult u = trainVoxel(grid, 0, pointersTo(grey), apart);
+    EXPECT_NE(u.params[n - 3 - 3 * hidden], u.params[n - 3 - 2 * hidden]);
+    EXPECT_LE(r.heldOutRelMse, u.heldOutRelMse);
+    // Coloured targets: the same network either way, bit for bit.
+    const std::vector<TrainingSample> colour = makeSamples(grid, smooth, 800);
+    EXPECT_EQ(trainVoxel(grid, 0, pointersTo(colour), settings).params, trainVoxel(grid, 0, pointersTo(colour), apart).params);
+}
+
 TEST(Trainer, SingleSampleVoxelAndConstantTargets) {
     Bounds3 bounds;
     bounds.extend(glm::vec3(0.0f));
