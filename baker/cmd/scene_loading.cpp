@@ -201,8 +201,8 @@ void addLightingOptions(CLI::App* cmd, LightingOptions& o) {
         ->check(finiteRange(0.0, 30.0));
     cmd->add_option("--runtime-direct", o.runtimeDirect,
                     "Mixed lighting: lights whose direct light the engine draws at run time (the asset holds only their "
-                    "indirect light): all (every punctual light and the sun), sun, or comma-separated light names or "
-                    "indices");
+                    "indirect light): auto (every sharp punctual light and a sharp sun; bake's default), none (bake it "
+                    "all), all (every punctual light and the sun), sun, or comma-separated light names or indices");
 }
 
 bool lightingFlagsGiven(CLI::App* cmd) {
@@ -263,13 +263,16 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
     }
     if (!o.runtimeDirect.empty()) {
         std::vector<std::string> names = splitCommas(o.runtimeDirect);
+        size_t marked = 0;
         for (const std::string& n : names) {
-            bool found = false;
+            // auto: every sharp light, none: no light (neither is an error where the scene has no such light).
+            bool found = n == "auto" || n == "none";
             for (size_t i = 0; i < scene.lights.size(); ++i) {
                 PunctualLight& l = scene.lights[i];
                 bool match = n == "all" || (n == "sun" && l.type == PunctualLight::Type::Directional) || n == l.name ||
-                             n == std::to_string(i);
+                             n == std::to_string(i) || (n == "auto" && !l.soft());
                 if (!match) continue;
+                ++marked;
                 found = true;
                 if (l.soft()) {
                     std::fprintf(stderr, "nrad %s: --runtime-direct %s: light %zu (%s) is soft; an engine draws sharp lights "
@@ -284,7 +287,8 @@ int applyOptions(const char* command, const LightingOptions& o, bool environment
                 return kExitUsage;
             }
         }
-        record["runtime_direct"] = o.runtimeDirect;
+        // Recorded when it marked a light (an asset without engine-drawn lights keeps its bytes).
+        if (marked > 0) record["runtime_direct"] = o.runtimeDirect;
     }
     return kExitOk;
 }

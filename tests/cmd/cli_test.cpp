@@ -585,6 +585,36 @@ TEST(CliEnvironment, SunAndEngineDrawnLights) {
     }
 }
 
+// Mixed lighting is bake's default for sharp lights (issue 38): without --runtime-direct a sharp sun's direct
+// light is left to the engine and the bake says so; --runtime-direct none bakes it all; a soft sun stays baked
+// (an engine cannot draw it); a scene without punctual lights bakes the same bytes either way.
+std::string readFileBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(CliEnvironment, SharpLightsAreEngineDrawnByDefault) {
+    std::string dir = test::temporaryDirectory();
+    const std::string bake = "bake " + boxScene() + " --grid 2 --points 2000 --paths 4 --epochs 20 --environment 0.2,0.2,0.2 ";
+    RunResult r = run(bake + "-o '" + dir + "/default.nrad' --sun 0.3,1,0.5 --sun-illuminance 2000");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("lighting: mixed: the engine draws the direct light of 'sun'"), std::string::npos) << r.output;
+    RunResult info = run("info '" + dir + "/default.nrad'");
+    EXPECT_NE(info.output.find("\"engine_drawn_direct\":[{\"light\":0,\"name\":\"sun\"}]"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("\"runtime_direct\":\"auto\""), std::string::npos) << info.output;
+    r = run(bake + "-o '" + dir + "/baked.nrad' --sun 0.3,1,0.5 --sun-illuminance 2000 --runtime-direct none");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("lighting: 1 punctual light(s) baked whole, direct light included"), std::string::npos) << r.output;
+    EXPECT_NE(run("info '" + dir + "/baked.nrad'").output.find("\"engine_drawn_direct\":[]"), std::string::npos);
+    r = run(bake + "-o '" + dir + "/soft.nrad' --sun 0.3,1,0.5 --sun-illuminance 2000 --sun-angle 2");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(run("info '" + dir + "/soft.nrad'").output.find("\"engine_drawn_direct\":[]"), std::string::npos);
+    // No punctual light: auto marks nothing, records nothing.
+    ASSERT_EQ(run(bake + "-o '" + dir + "/a.nrad' -q").exitCode, 0);
+    ASSERT_EQ(run(bake + "-o '" + dir + "/b.nrad' --runtime-direct none -q").exitCode, 0);
+    EXPECT_EQ(readFileBytes(dir + "/a.nrad"), readFileBytes(dir + "/b.nrad"));
+}
+
 // --look-from/--look-at override the camera (looking at the box from +X shows it in the image's centre, from
 // far away it is small); half a pair, a degenerate view or bad numbers are usage errors.
 TEST(CliView, LookFromLookAtAndFov) {
