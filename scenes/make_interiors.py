@@ -9,6 +9,9 @@
 - scenes/sky-room/sky-room.gltf: a room of 5 x 3 x 5 m with 200 mm walls, lit only by the sky (it has no light
   of its own: nrad gives it the default sky) through a door and two windows, a table and a cabinet inside,
   every surface grey (0.6). The camera stands inside and sees the ceiling, two walls and the floor.
+- scenes/living-room/living-room.gltf: a 6 x 2.8 x 5 m room with a wide window, lit by a 10,000 lux sun (a
+  KHR_lights_punctual directional light) through it; a table with a glossy black top faces the window, a sofa
+  and a cabinet, the rest grey (0.6). The camera looks across the table at the window.
 
 Units: millimetres here, metres in the file. Run from anywhere: python3 scenes/make_interiors.py
 """
@@ -53,8 +56,9 @@ def wall_face(x, normal, door):
     return [rect(0, DOOR_Z[0], 0, HEIGHT), rect(DOOR_Z[1], DEPTH, 0, HEIGHT), rect(DOOR_Z[0], DOOR_Z[1], DOOR_H, HEIGHT)]
 
 
-def write_gltf(name, builder, prims, materials, camera, yfov_degrees):
-    """Writes scenes/NAME/NAME.gltf: one mesh of `prims` and the camera node `camera`."""
+def write_gltf(name, builder, prims, materials, camera, yfov_degrees, sun=None):
+    """Writes scenes/NAME/NAME.gltf: one mesh of `prims`, the camera node `camera`, and with sun = (direction
+    towards the sun, illuminance in lux) a KHR_lights_punctual directional light."""
     doc = {
         "asset": {"version": "2.0", "generator": "nrad scenes/make_interiors.py"},
         "extensionsUsed": sorted({e for m in materials for e in m.get("extensions", {})}),
@@ -70,6 +74,18 @@ def write_gltf(name, builder, prims, materials, camera, yfov_degrees):
         "buffers": [{"byteLength": len(builder.blob),
                      "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(builder.blob)).decode()}],
     }
+    if sun:
+        towards, lux = sun
+        n = math.sqrt(sum(c * c for c in towards))
+        d = [-c / n for c in towards]  # the light travels along d; a glTF light shines down its node's -Z
+        axis = (d[1], -d[0], 0.0)  # (0, 0, -1) x d
+        s_ = math.sqrt(axis[0] ** 2 + axis[1] ** 2)
+        angle = math.acos(max(-1.0, min(1.0, -d[2])))
+        rot = [axis[0] / s_ * math.sin(angle / 2), axis[1] / s_ * math.sin(angle / 2), 0.0, math.cos(angle / 2)]
+        doc["extensionsUsed"] = sorted(set(doc["extensionsUsed"]) | {"KHR_lights_punctual"})
+        doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"name": "sun", "type": "directional", "intensity": lux}]}}
+        doc["nodes"].append({"name": "sun", "rotation": rot, "extensions": {"KHR_lights_punctual": {"light": 0}}})
+        doc["scenes"][0]["nodes"].append(2)
     folder = os.path.join(HERE, name)
     os.makedirs(folder, exist_ok=True)
     with open(os.path.join(folder, name + ".gltf"), "w") as f:
@@ -137,11 +153,9 @@ def box(lo, hi, bottom=False):
     return q
 
 
-def write_sky_room():
-    X, Y, Z, T = 5000.0, 3000.0, 5000.0, 200.0  # inner size and wall thickness
-    door = (1800.0, 2700.0, 0.0, 2100.0)  # in the z = Z wall (u = x, v = y)
-    windows = [(800.0, 2000.0, 900.0, 1900.0), (2800.0, 4000.0, 900.0, 1900.0)]  # in the x = 0 wall (u = y, v = z)
-    windows = [(w[2], w[3], w[0], w[1]) for w in windows]  # as (y0, y1, z0, z1)
+def shell(X, Y, Z, T, door, windows):
+    """A room of inner size X x Y x Z with walls T thick, a door (x0, x1, y0, y1) in the z = Z wall and windows
+    (y0, y1, z0, z1) in the x = 0 wall: the inside faces, the outside of the shell, the openings' reveals."""
     grey = []
     # Inside faces, then the outside of the shell, then each opening's reveal through the thickness.
     grey.append(facing([(0, 0, 0), (X, 0, 0), (X, 0, Z), (0, 0, Z)], (0, 1, 0)))
@@ -168,6 +182,26 @@ def write_sky_room():
     grey.append(facing([(x1, 0, Z), (x1, y1, Z), (x1, y1, Z + T), (x1, 0, Z + T)], (-1, 0, 0)))
     grey.append(facing([(x0, -T, Z), (x1, -T, Z), (x1, -T, Z + T), (x0, -T, Z + T)], (0, 1, 0)))  # the door's sill
     grey.append(facing([(x0, -T, Z), (x1, -T, Z), (x1, 0, Z), (x0, 0, Z)], (0, 0, 1)))  # the floor's edge in the door
+    return grey
+
+
+def look(yaw_degrees, pitch_degrees):
+    """A glTF camera's rotation: yaw about Y, then pitch in the camera's frame (q = qy * qx)."""
+    yaw, pitch = math.radians(yaw_degrees), math.radians(pitch_degrees)
+    qy = (0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2))
+    qx = (math.sin(pitch / 2), 0.0, 0.0, math.cos(pitch / 2))
+    return [qy[3] * qx[0] + qy[0] * qx[3] + qy[1] * qx[2] - qy[2] * qx[1],
+            qy[3] * qx[1] - qy[0] * qx[2] + qy[1] * qx[3] + qy[2] * qx[0],
+            qy[3] * qx[2] + qy[0] * qx[1] - qy[1] * qx[0] + qy[2] * qx[3],
+            qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2]]
+
+
+def write_sky_room():
+    X, Y, Z, T = 5000.0, 3000.0, 5000.0, 200.0  # inner size and wall thickness
+    door = (1800.0, 2700.0, 0.0, 2100.0)  # in the z = Z wall (u = x, v = y)
+    windows = [(800.0, 2000.0, 900.0, 1900.0), (2800.0, 4000.0, 900.0, 1900.0)]  # in the x = 0 wall (u = y, v = z)
+    windows = [(w[2], w[3], w[0], w[1]) for w in windows]  # as (y0, y1, z0, z1)
+    grey = shell(X, Y, Z, T, door, windows)
     # A table (top on four legs) and a cabinet.
     grey += box((2000.0, 700.0, 1800.0), (3400.0, 750.0, 2800.0), bottom=True)
     for lx, lz in [(2050, 1850), (3300, 1850), (2050, 2700), (3300, 2700)]:
@@ -177,19 +211,36 @@ def write_sky_room():
     prims = [b.primitive(grey, 0)]
     # The camera by the wall opposite the windows, 1.6 m high, looking towards the windows and the door's
     # corner, a little down (yaw about Y, then pitch).
-    yaw, pitch = math.radians(55.0), math.radians(-12.0)  # looking along (-0.82, 0, -0.57), then 12 degrees down
-    qy = (0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2))
-    qx = (math.sin(pitch / 2), 0.0, 0.0, math.cos(pitch / 2))
-    # q = qy * qx (pitch in the camera's frame, then yaw)
-    q = (qy[3] * qx[0] + qy[0] * qx[3] + qy[1] * qx[2] - qy[2] * qx[1],
-         qy[3] * qx[1] - qy[0] * qx[2] + qy[1] * qx[3] + qy[2] * qx[0],
-         qy[3] * qx[2] + qy[0] * qx[1] - qy[1] * qx[0] + qy[2] * qx[3],
-         qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2])
+    q = look(55.0, -12.0)  # looking along (-0.82, 0, -0.57), then 12 degrees down
     camera = {"name": "camera", "camera": 0, "translation": [4600.0 * cb.MM, 1600.0 * cb.MM, 4400.0 * cb.MM], "rotation": list(q)}
     write_gltf("sky-room", b, prims, [cb.material("grey", GREY)], camera, 65.0)
+
+
+def write_living_room():
+    X, Y, Z, T = 6000.0, 2800.0, 5000.0, 200.0
+    door = (4600.0, 5500.0, 0.0, 2100.0)  # in the z = Z wall
+    windows = [(700.0, 2300.0, 1200.0, 3800.0)]  # one wide window in the x = 0 wall, as (y0, y1, z0, z1)
+    grey = shell(X, Y, Z, T, door, windows)
+    # A sofa and a low cabinet, grey.
+    grey += box((4200.0, 0.0, 800.0), (5200.0, 800.0, 3200.0))
+    grey += box((2200.0, 0.0, 4300.0), (3800.0, 600.0, 4800.0))
+    # The table facing the window: a glossy black top (roughness 0.15, full specular) on four grey legs.
+    top = box((1200.0, 720.0, 1800.0), (2600.0, 760.0, 3200.0), bottom=True)
+    legs = []
+    for lx, lz in [(1260, 1860), (2500, 1860), (1260, 3100), (2500, 3100)]:
+        legs += box((float(lx), 0.0, float(lz)), (lx + 40.0, 720.0, lz + 40.0))
+    b = cb.Builder()
+    prims = [b.primitive(grey + legs, 0), b.primitive(top, 1)]
+    materials = [cb.material("grey", GREY), cb.material("glossy table", (0.04, 0.04, 0.04), roughness=0.15, specular=1.0)]
+    # The camera at the back of the room, 1.5 m high, looking at the table and the window, a little down.
+    camera = {"name": "camera", "camera": 0, "translation": [5600.0 * cb.MM, 1500.0 * cb.MM, 3900.0 * cb.MM],
+              "rotation": look(75.0, -14.0)}
+    # A low afternoon sun through the window: onto the floor, the table and the wall opposite.
+    write_gltf("living-room", b, prims, materials, camera, 65.0, sun=((-0.75, 0.55, 0.3), 10000.0))
 
 
 if __name__ == "__main__":
     write("doorway-rooms", door=True)
     write("sealed-rooms", door=False)
     write_sky_room()
+    write_living_room()
