@@ -275,7 +275,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     // a start they needed many of to undo).
     // A grid finer than the default's 3 x 3 x 3 and no --points: the default's density, 160,000 points per 27
     // cells (at most 4 M). At a fixed count each network of --grid 4 or 6 gets 42% or 13% of the samples and
-    // makes a block of its own noise: the doorway's dark wall at --grid 4 went from 8.3% to 4.7% rms
+    // makes a block of its own noise: the doorway's dark wall at --grid 4 went from 7.3% to 5.7% rms
     // (docs/results.md).
     if (s.training == TrainingMethod::MonteCarlo && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints) {
         const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
