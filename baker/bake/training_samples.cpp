@@ -162,7 +162,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     const size_t grain = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
     tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), grain), [&](const tbb::blocked_range<size_t>& range) {
         RayCounters counters;
-        uint64_t nonFinite = 0;
+        uint64_t nonFinite = 0, noisy = 0;
         // The range's points, then all their paths traced together (PathTracer::estimate, in batches).
         std::vector<size_t> points;
         std::vector<SurfaceInteraction> starts;
@@ -191,6 +191,38 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         std::vector<glm::vec3> estimates(paths.size());
         tracer.estimate(paths.data(), paths.size(), settings.maxDepth, estimator.tail, estimator.bounces, counters,
                         estimates.data());
+        // Noisy targets: points whose mean's relative standard error is above the bound get more paths,
+        // traced together as well (paths numbered on from settings.paths).
+        std::vector<uint32_t> extraOf(points.size(), 0);
+        const bool adaptive = !estimator.tail && settings.extraPathsFactor > 1 && settings.paths > 1;
+        if (adaptive) {
+            std::vector<PathStart> more;
+            const uint32_t extra = (settings.extraPathsFactor - 1) * settings.paths;
+            for (size_t k = 0; k < points.size(); ++k) {
+                double s1 = 0.0, s2 = 0.0;
+                uint32_t n = 0;
+                for (uint32_t j = 0; j < settings.paths; ++j) {
+                    const glm::vec3& L = estimates[k * settings.paths + j];
+                    if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
+                    const double l = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
+                    s1 += l;
+                    s2 += l * l;
+                    ++n;
+                }
+                if (n < 2 || !(s1 > 0.0)) continue;
+                const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
+                if (std::sqrt(var / n) <= double(settings.noisyRelativeError) * mean) continue;
+                extraOf[k] = extra;
+                for (uint32_t j = 0; j < extra; ++j) more.push_back({&starts[k], requests[points[k]].pathStream, settings.paths + j});
+            }
+            if (!more.empty()) {
+                const size_t at = estimates.size();
+                estimates.resize(at + more.size());
+                tracer.estimate(more.data(), more.size(), settings.maxDepth, estimator.tail, estimator.bounces, counters,
+                                estimates.data() + at);
+            }
+        }
+        size_t extraAt = points.size() * settings.paths;
         for (size_t k = 0; k < points.size(); ++k) {
             const size_t i = points[k];
             const SurfacePiece& piece = pieces.pieces()[requests[i].piece];
@@ -198,15 +230,18 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
             const glm::vec3 &p = pointP[k], &wo = pointWo[k];
             glm::dvec3 sum(0.0);
             uint32_t finite = 0;
-            for (uint32_t j = 0; j < settings.paths; ++j) {
-                const glm::vec3& L = estimates[k * settings.paths + j];
+            auto add = [&](const glm::vec3& L) {
                 if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) {
                     sum += glm::dvec3(L);
                     ++finite;
                 } else {
                     ++nonFinite;
                 }
-            }
+            };
+            for (uint32_t j = 0; j < settings.paths; ++j) add(estimates[k * settings.paths + j]);
+            for (uint32_t j = 0; j < extraOf[k]; ++j) add(estimates[extraAt + j]);
+            extraAt += extraOf[k];
+            if (extraOf[k] > 0) ++noisy;
             if (finite > 0) {
                 TrainingSample& t = out[i];
                 t.position = p;
@@ -232,6 +267,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         std::lock_guard<std::mutex> lock(statsMutex);
         stats.rays += counters;
         stats.nonFinitePaths += nonFinite;
+        stats.noisyPoints += noisy;
     });
 
     samples.reserve(out.size());

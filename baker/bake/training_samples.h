@@ -53,6 +53,12 @@ struct SampleSettings {
     // sequence at index `firstPoint`, and its floor points and paths are salted with `generation` (0: none).
     uint32_t firstPoint = 0;
     uint32_t generation = 0;
+    // Noisy targets get more paths (Monte Carlo targets only): a point whose mean's relative standard error
+    // (luminance, over its `paths` estimates) exceeds noisyRelativeError gets (extraPathsFactor - 1) x paths
+    // more, decided per point from its own estimates (any threads, the same samples). 1: off (the default until
+    // every figure in docs/results.md is measured with it; `--noisy-paths 4` takes the glossy box to 0.0037).
+    uint32_t extraPathsFactor = 1;
+    float noisyRelativeError = 0.15f;
 };
 
 // How a sample's target is estimated: `paths` full paths (Monte Carlo), or, with a tail, `paths` estimates of
@@ -68,6 +74,7 @@ struct SampleStats {
     uint64_t nonFinitePaths = 0;  // path estimates that were NaN or Inf: dropped
     uint64_t droppedSamples = 0;  // points whose every path estimate was non-finite
     uint64_t hiddenSamples = 0;  // points no viewer sees from their direction (dropped, SampleSettings::dropHidden)
+    uint64_t noisyPoints = 0;  // points that got extra paths (SampleSettings::extraPathsFactor)
     RayCounters rays;
     std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
     uint64_t neeWarmupPaths = 0, neeTrainingSteps = 0;
