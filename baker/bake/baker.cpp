@@ -210,13 +210,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         }
     }
     const bool adaptive = budgeted || walled;  // the cells are a tree's leaves
-    if (walled) {
-        const AdaptivePartition& ap = result.partition;
-        const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
-        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
-            return positionInCell(partition, ap, true, grid, samples[i].position, ap.leafOfSample[i]);
-        });
-    } else if (budgeted) {
+    if (budgeted) {
         lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         // The metadata, exactly: a budgeted asset's metadata leaves out the per-network error list (--stats has
         // it), so it depends on nothing that refining changes.
@@ -231,6 +225,8 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const Bak
         if (!settings.metadata) reserve = {};
         result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve,
                                            settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer());
+    }
+    if (adaptive) {
         const AdaptivePartition& ap = result.partition;
         const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
         byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
