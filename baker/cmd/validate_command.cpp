@@ -144,11 +144,12 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
         std::printf("  what the eye sees: SSIM %.4f%s at the viewer's exposure (%+.1f stops)\n", n.metrics.ssim,
                     b ? (" [" + fmtG(sh->metrics.ssim) + "]").c_str() : "", n.metrics.ssimExposure);
         std::printf("  what the eye sees (%zu surface pixels): relMSE %.3g%s; %dx%d-pixel blocks (%zu): luminance error rms %.3g, "
-                    "worst %.3g%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
+                    "worst %.3g%s%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
                     "worst %.3g\n",
                     n.surfaces.pixels, n.surfaces.relMse, b ? (" [" + fmtG(sh->surfaces.relMse) + "]").c_str() : "", n.blocks.blockSize,
                     n.blocks.blockSize, n.blocks.blocks, n.blocks.rms, n.blocks.worst,
-                    b ? (" [" + fmtG(sh->blocks.rms) + ", " + fmtG(sh->blocks.worst) + "]").c_str() : "", n.blocks.tintRms,
+                    b ? (" [" + fmtG(sh->blocks.rms) + ", " + fmtG(sh->blocks.worst) + "]").c_str() : "",
+                    r.referenceBlockNoise >= 0.0 ? (" (the reference's own noise: about " + fmtG(r.referenceBlockNoise) + " rms)").c_str() : "", n.blocks.tintRms,
                     n.blocks.tintWorst, n.blocks.chroma, n.blocks.referenceChroma, n.steps.faces, n.steps.rms, n.steps.worst);
         // By material, largest neural share first (the five largest; report.json has them all).
         const std::vector<size_t> order = materialsByNeuralShare(r);

@@ -146,7 +146,9 @@ std::string headlineSentence(const ValidationResult& r) {
         s << "; over the " << n.surfaces.pixels << " pixels on surfaces, relMSE " << fmt("%.3g", n.surfaces.relMse);
         if (n.blocks.blocks > 0)
             s << "; averaged over " << n.blocks.blockSize << " x " << n.blocks.blockSize << "-pixel blocks the light is off by "
-              << fmt("%.3g", n.blocks.rms) << " rms (worst block " << fmt("%.3g", n.blocks.worst) << ") and tinted by "
+              << fmt("%.3g", n.blocks.rms) << " rms (worst block " << fmt("%.3g", n.blocks.worst)
+              << (r.referenceBlockNoise >= 0.0 ? "; the reference's own noise there: about " + fmt("%.3g", r.referenceBlockNoise) + " rms" : std::string())
+              << ") and tinted by "
               << fmt("%.3g", n.blocks.tintRms) << " rms (worst " << fmt("%.3g", n.blocks.tintWorst) << "; the reference's chroma "
               << fmt("%.3g", n.blocks.referenceChroma) << ", the asset's " << fmt("%.3g", n.blocks.chroma) << ")";
         if (n.steps.faces > 0)
@@ -271,6 +273,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     j["reference"] = {{"source", r.referenceSource}, {"cache_file", r.referenceCacheFile}, {"seconds", r.referenceSeconds}};
     j["bias_notes"] = r.biasNotes;
     if (r.referenceNoise >= 0.0) j["reference"]["noise_relmse_estimate"] = num(r.referenceNoise);
+    if (r.referenceBlockNoise >= 0.0) j["reference"]["block_noise_rms_estimate"] = num(r.referenceBlockNoise);
     nlohmann::json curve = nlohmann::json::array();
     for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
     j["path_tracer_convergence"] = curve;
@@ -406,6 +409,8 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     if (r.referenceNoise >= 0.0)
         h << "; its own noise adds about " << fmt("%.3g", r.referenceNoise)
           << " to every relMSE measured against it (estimated from the path tracer's curve)";
+    if (r.referenceBlockNoise >= 0.0)
+        h << " and about " << fmt("%.3g", r.referenceBlockNoise) << " rms to the block figure";
     h << ". Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
     h << "<p class=\"summary\">" << escape(headlineSentence(r)) << "</p>\n";
     h << "<h2>Images</h2>\n<div>";

@@ -343,6 +343,11 @@ double referenceNoise(const std::vector<CurvePoint>& curve, int referenceSpp) {
     return last.metrics.relMse * double(last.spp) / (double(last.spp) + double(referenceSpp));
 }
 
+double referenceBlockNoise(double rms, int spp, int referenceSpp) {
+    if (spp <= 0 || referenceSpp <= 0 || !(rms >= 0.0)) return 0.0;
+    return rms * std::sqrt(double(spp) / (double(spp) + double(referenceSpp)));
+}
+
 double equalErrorTime(const std::vector<CurvePoint>& curve, double relMse, bool& extrapolated) {
     extrapolated = true;
     if (curve.empty() || !(relMse > 0.0)) return 0.0;
@@ -426,6 +431,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     }
 
     // 2. The path tracer's convergence against the reference, with an independent seed.
+    Image lastCurveImage;  // for the reference's block noise, once the surface pixels are known
     for (long long spp = 1; spp <= std::max(1, settings.curveMaxSpp); spp *= 2) {
         RenderSettings c = rs;
         c.spp = int(spp);
@@ -436,6 +442,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
         char line[160];
         std::snprintf(line, sizeof line, "path tracer %4lld spp: %.3f s, relMSE %.4g", spp, st.seconds, r.curve.back().metrics.relMse);
         say(line);
+        lastCurveImage = std::move(img);
     }
 
     if (settings.referenceImage.empty()) {
@@ -470,6 +477,12 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     r.cellOfPixel = hits.voxel;
     r.surfaceOfPixel.assign(hits.material.size(), 0);
     for (size_t i = 0; i < hits.material.size(); ++i) r.surfaceOfPixel[i] = hits.material[i] >= 0 && !hits.emitter[i];
+    if (settings.referenceImage.empty() && !r.curve.empty() && lastCurveImage.width == r.reference.width &&
+        lastCurveImage.height == r.reference.height) {
+        const BlockFigure curveBlocks = blockFigure(lastCurveImage, r.reference, r.surfaceOfPixel, std::max(1, r.width / 16));
+        if (curveBlocks.blocks > 0) r.referenceBlockNoise = referenceBlockNoise(curveBlocks.rms, r.curve.back().spp, settings.referenceSpp);
+    }
+    lastCurveImage = Image();
     for (size_t k = 0; k < scene.materials.size(); ++k)
         r.materialNames.push_back(scene.materials[k].name.empty() ? "material " + std::to_string(k) : scene.materials[k].name);
     r.seams = seamFigure(hits, partition, asset);

@@ -145,6 +145,10 @@ struct ValidationResult {
     // The relMSE the reference's own Monte Carlo noise adds to every figure measured against it (each image
     // here is smooth or independent of it): referenceNoise(curve, spp); < 0 when unknown (a given reference).
     double referenceNoise = -1.0;
+    // The rms relative error of the reference's own block means in the neural image's block figure (its
+    // floor: an exact image would read about this against the reference): referenceBlockNoise of the
+    // curve's last image's block figure; < 0 when unknown (a given reference, or no blocks).
+    double referenceBlockNoise = -1.0;
     ShFitStats baselineFit;
     glm::uvec3 baselineProbes{0};
     size_t baselineTrainingSamples = 0;
@@ -188,6 +192,10 @@ std::vector<size_t> materialsByNeuralShare(const ValidationResult& r);
 // reference's share is relMSE(N) N / (N + referenceSpp). An estimate: the curve's highest spp is the most
 // nearly in that 1 / spp regime. 0 for an empty curve.
 double referenceNoise(const std::vector<CurvePoint>& curve, int referenceSpp);
+// The same split for the block figure's rms, whose squares add as relMSEs do: an independent render of
+// `spp` whose blocks read `rms` against a reference of `referenceSpp` gives the reference's own share,
+// rms x sqrt(spp / (spp + referenceSpp)).
+double referenceBlockNoise(double rms, int spp, int referenceSpp);
 
 // The equal-error time on a convergence curve (see MethodResult); `extrapolated` says whether the value
 // lies outside the curve.

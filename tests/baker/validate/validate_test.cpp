@@ -660,6 +660,33 @@ TEST(Validate, ReferenceNoiseIsTheReferencesShareOfTheCurve) {
     EXPECT_EQ(referenceNoise({}, 512), 0.0);
 }
 
+// The reference's own noise in the block figure, estimated as validate does from an independent render of
+// fewer paths, against the reference's block error measured against the truth itself.
+TEST(Validate, ReferenceBlockNoiseIsTheReferencesShareOfACurveImagesBlocks) {
+    const int W = 256, M = 512, S = 64, block = 16;
+    const double sigma = 2.0;  // a path's relative standard deviation: the pixel's at N paths is sigma / sqrt(N)
+    std::mt19937 rng(5);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    Image truth(W, W), reference(W, W), curve(W, W);
+    for (int y = 0; y < W; ++y)
+        for (int x = 0; x < W; ++x) {
+            const float v = 0.2f + 0.001f * float(x + y);
+            truth.at(x, y) = glm::vec3(v);
+            reference.at(x, y) = glm::vec3(float(v * (1.0 + sigma / std::sqrt(double(M)) * normal(rng))));
+            curve.at(x, y) = glm::vec3(float(v * (1.0 + sigma / std::sqrt(double(S)) * normal(rng))));
+        }
+    const std::vector<uint8_t> mask(size_t(W) * W, 1);
+    const double measured = blockFigure(reference, truth, mask, block).rms;  // what the reference's blocks are off by
+    const double expected = sigma / std::sqrt(double(M) * block * block);  // 0.0055
+    EXPECT_NEAR(measured, expected, 0.15 * expected);
+    const double estimate = referenceBlockNoise(blockFigure(curve, reference, mask, block).rms, S, M);
+    EXPECT_NEAR(estimate, measured, 0.15 * measured);
+    // Without the split (the curve image's blocks as they read) it would be 3x too large.
+    EXPECT_GT(blockFigure(curve, reference, mask, block).rms, 2.5 * measured);
+    EXPECT_EQ(referenceBlockNoise(0.1, 0, M), 0.0);
+    EXPECT_NEAR(referenceBlockNoise(0.3, 64, 512), 0.1, 1e-12);
+}
+
 TEST(Report, BakeCurveAggregatesVoxelsAndPlotsAreSvg) {
     nlohmann::json stats = {{"voxels",
                              {{{"curve_epoch_seconds_relmse", {{0, 0.1, 1.0}, {10, 0.2, 0.5}}}},
