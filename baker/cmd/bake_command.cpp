@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -117,6 +118,20 @@ bool parseBytes(const std::string& s, uint64_t& out) {
     return true;
 }
 
+// --nee's names (also "nee" in --config).
+const std::map<std::string, NeeMode>& neeModes() {
+    static const std::map<std::string, NeeMode> m{{"power", NeeMode::Power}, {"uniform", NeeMode::Uniform}, {"learned", NeeMode::Learned}};
+    return m;
+}
+
+bool parseNeeMode(std::string name, NeeMode& out) {
+    for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
+    const auto it = neeModes().find(name);
+    if (it == neeModes().end()) return false;
+    out = it->second;
+    return true;
+}
+
 int usage(const std::string& what) {
     std::fprintf(stderr, "nrad bake: %s\n", what.c_str());
     return kExitUsage;
@@ -136,19 +151,15 @@ int runBake(BakeOptions o, CLI::App* cmd) {
             if (!f) throw std::runtime_error("cannot open file");
             cfg = nlohmann::json::parse(f);
             if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
+            std::set<std::string> known;  // every key some line below reads
             auto take = [&](const char* key, const char* flag, auto& value) {
+                known.insert(key);
                 if (cfg.contains(key) && cmd->count(flag) == 0) value = cfg.at(key).get<std::decay_t<decltype(value)>>();
             };
-            static const char* known[] = {"grid", "points", "paths", "max_depth", "hidden", "epochs", "seed", "batch_size",
-                                          "learning_rate", "loss", "encoding", "min_samples_per_voxel", "patience",
-                                          "blend_band", "weight_decay", "environment", "environment_intensity",
-                                          "environment_rotation", "sun", "sun_illuminance", "sun_angle", "runtime_direct",
-                                          "budget", "levels", "min_leaf_samples", "training", "generations",
-                                          "generation_points", "generation_paths", "generation_epochs", "bounces", "start_epochs",
-                                          "start_restarts", "wall_splits", "noisy_paths"};
-            for (auto& [key, value] : cfg.items())
-                if (std::find(std::begin(known), std::end(known), key) == std::end(known))
-                    throw std::runtime_error("unknown key '" + key + "'");
+            // The keys read other than through take(), each with its flag: "--no-X" flags are "X": false.
+            for (const char* k : {"budget", "wall_splits", "grid", "hidden", "weight_decay", "nee", "generation_lr", "demodulate",
+                                  "metadata"})
+                known.insert(k);
             configPoints = cfg.contains("points");
             if (cfg.contains("budget") && cmd->count("--budget") == 0)
                 o.budget = cfg["budget"].is_number_integer() ? std::to_string(cfg["budget"].get<uint64_t>()) : cfg["budget"].get<std::string>();
@@ -208,6 +219,20 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                     take("weight_decay", "--weight-decay", o.weightDecay);
                 }
             }
+            if (cfg.contains("nee") && cmd->count("--nee") == 0) {
+                const std::string mode = cfg.at("nee").get<std::string>();
+                if (!parseNeeMode(mode, o.nee)) throw std::runtime_error("\"nee\": expected power, uniform or learned, not '" + mode + "'");
+            }
+            take("generation_lr", "--generation-lr", o.generationLr);
+            take("average_decay", "--average-decay", o.integral.averageDecay);
+            if (cfg.contains("demodulate") && cmd->count("--no-demodulate") == 0) o.noDemodulate = !cfg.at("demodulate").get<bool>();
+            if (cfg.contains("metadata") && cmd->count("--no-metadata") == 0) o.noMetadata = !cfg.at("metadata").get<bool>();
+            take("max_texture_pixels", "--max-texture-pixels", o.importLimits.maxTexturePixels);
+            take("max_triangles", "--max-triangles", o.importLimits.maxTriangles);
+            if (o.importLimits.maxTexturePixels < 1 || o.importLimits.maxTriangles < 1)
+                throw std::runtime_error("\"max_texture_pixels\" and \"max_triangles\" must be at least 1");
+            for (auto& [key, value] : cfg.items())
+                if (known.count(key) == 0) throw std::runtime_error("unknown key '" + key + "'");
         } catch (const std::exception& e) {
             std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
             return kExitBadInput;
@@ -528,10 +553,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--nee", o->nee,
                     "Light selection of the training paths: power (default), uniform, or learned (a selection network "
                     "trained on warm-up paths from the training points first)")
-        ->transform(CLI::CheckedTransformer(
-            std::map<std::string, NeeMode>{{"power", NeeMode::Power}, {"uniform", NeeMode::Uniform},
-                                           {"learned", NeeMode::Learned}},
-            CLI::ignore_case));
+        ->transform(CLI::CheckedTransformer(neeModes(), CLI::ignore_case));
     cmd->add_option("--max-depth", o->maxDepth,
                     "Path length in segments for training radiance; 0 = unbounded, with Russian roulette (default 0: "
                     "the full light transport; a length cuts off the light of longer paths, a bias validate reports)");

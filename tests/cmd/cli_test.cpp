@@ -1,10 +1,12 @@
 // The nrad executable: exit codes and messages for bad scenes and bad flags, no output file left behind,
 // and a successful render writing readable EXR and PNG files.
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
-#include <cmath>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -232,6 +234,44 @@ TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
     EXPECT_EQ(r.exitCode, 3);
     EXPECT_NE(r.output.find("bad.json: unknown key 'colour'"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir + "/b.nrad"));
+}
+
+// Every flag of `nrad bake` that is a setting (all but where output goes, how it runs and its help) is a key of
+// --config, "--no-X" as "X": false; a key that no line reads is refused, so the two cannot drift apart.
+TEST(CliBake, EverySettingFlagIsAConfigKey) {
+    const RunResult help = run("bake --help");
+    ASSERT_EQ(help.exitCode, 0) << help.output;
+    std::set<std::string> flags;
+    for (size_t at = help.output.find("--"); at != std::string::npos; at = help.output.find("--", at + 2)) {
+        size_t end = at + 2;
+        while (end < help.output.size() && (std::islower(static_cast<unsigned char>(help.output[end])) || help.output[end] == '-')) ++end;
+        if (end > at + 2) flags.insert(help.output.substr(at, end - at));
+    }
+    for (const char* notSetting : {"--help", "--output", "--config", "--stats", "--threads", "--quiet", "--save-generations"})
+        flags.erase(notSetting);
+    ASSERT_GE(flags.size(), 40u);
+    const std::string dir = test::temporaryDirectory();
+    for (const std::string& flag : flags) {
+        std::string key = flag.substr(flag.compare(0, 5, "--no-") == 0 ? 5 : 2);
+        for (char& c : key) c = c == '-' ? '_' : c;
+        std::ofstream(dir + "/one.json") << "{\"" << key << "\": null}";
+        const RunResult r = run("bake " + cornell() + " -o '" + dir + "/x.nrad' --config '" + dir + "/one.json' -q");
+        EXPECT_EQ(r.exitCode, 3) << flag << ": " << r.output;  // null is no value of any setting
+        EXPECT_EQ(r.output.find("unknown key"), std::string::npos) << flag << " has no --config key '" << key << "': " << r.output;
+    }
+    EXPECT_FALSE(fs::exists(dir + "/x.nrad"));
+    // The keys added with this test do what their flags do.
+    const std::string small = " --grid 2 --points 300 --paths 2 --epochs 10 -q";
+    auto bytes = [](const std::string& path) {
+        std::ifstream f(path, std::ios::binary);
+        return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    };
+    std::ofstream(dir + "/keys.json") << R"({"nee": "uniform", "demodulate": false, "metadata": false})";
+    ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/flags.nrad' --nee uniform --no-demodulate --no-metadata" + small).exitCode, 0);
+    ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/keys.nrad' --config '" + dir + "/keys.json'" + small).exitCode, 0);
+    ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/plain.nrad'" + small).exitCode, 0);
+    EXPECT_EQ(bytes(dir + "/flags.nrad"), bytes(dir + "/keys.nrad"));
+    EXPECT_NE(bytes(dir + "/flags.nrad"), bytes(dir + "/plain.nrad"));
 }
 
 TEST(CliBake, BadFlagsAndScenesWriteNothing) {
