@@ -17,6 +17,7 @@
 #include "baker/render/accel.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/path_tracer.h"
+#include "baker/util/hash.h"
 
 namespace nrad {
 
@@ -27,11 +28,7 @@ double since(std::chrono::steady_clock::time_point t) {
 
 template <typename T>
 void hashBytes(uint64_t& h, const T* data, size_t count) {
-    const auto* p = reinterpret_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < count * sizeof(T); ++i) {
-        h ^= p[i];
-        h *= 0x100000001b3ull;
-    }
+    fnv1a(h, data, count * sizeof(T));
 }
 
 // The partition's measured phase: each cell's network trained briefly on (up to 2,000 of) its own samples,
@@ -102,7 +99,7 @@ bool parseTrainingMethod(const std::string& name, TrainingMethod& method) {
 }
 
 uint64_t sceneHash(const Scene& scene) {
-    uint64_t h = 0xcbf29ce484222325ull;
+    uint64_t h = kFnvOffsetBasis;
     hashBytes(h, scene.mesh.positions.data(), scene.mesh.positions.size());
     hashBytes(h, scene.mesh.normals.data(), scene.mesh.normals.size());
     hashBytes(h, scene.mesh.triangles.data(), scene.mesh.triangles.size());

@@ -253,13 +253,12 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     std::vector<float> y(static_cast<size_t>(nOut));
     auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, bws, d, set, settings, result.transform, result.scale); };
 
-    double bestOverall = std::numeric_limits<double>::infinity();
-    std::vector<float> bestOverallParams;
+    std::vector<float> keptParams;  // of the first attempt that did not fail
     for (int attempt = 0; attempt < settings.maxAttempts; ++attempt) {
         ++result.attempts;
         uint64_t initSeed = (uint64_t(settings.seed) << 32) ^ (uint64_t(voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart) << 4);
         mlp.initialize(initSeed, settings.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
-        Adam adam(mlp.parameters().size(), settings.learningRate);
+        Adam adam(mlp.parameters().size());
         SplitMix64 order(initSeed ^ 0x5851f42d4c957f2dull);
         std::vector<size_t> perm = train;
         double best = std::numeric_limits<double>::infinity();
@@ -323,14 +322,13 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         if (failure.empty()) {
             result.curve = std::move(curve);
             result.epochs = epoch;
-            bestOverallParams = mlp.parameters();
-            bestOverall = best;
+            keptParams = mlp.parameters();
             break;
         }
         result.events.push_back("attempt " + std::to_string(attempt + 1) + ": " + failure + ", re-initialised");
     }
 
-    if (bestOverallParams.empty()) {
+    if (keptParams.empty()) {
         // Every attempt failed: store a network that outputs the voxel's mean radiance, always finite.
         result.fallback = true;
         result.events.push_back("fallback: constant network with the voxel's mean radiance");
@@ -340,13 +338,12 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         if (weightSum > 0.0) mean /= weightSum;
         size_t outBias = mlp.parameters().size() - size_t(nOut);
         for (int c = 0; c < nOut; ++c) mlp.parameters()[outBias + size_t(c)] = lossTarget(settings.loss, invScale, float(mean[c]));
-        bestOverallParams = mlp.parameters();
+        keptParams = mlp.parameters();
     }
-    mlp.parameters() = bestOverallParams;
-    result.params = bestOverallParams;
+    mlp.parameters() = keptParams;
+    result.params = keptParams;
     result.heldOutRelMse = evaluate(evalSet);
     result.trainRelMse = evaluate(train);
-    (void)bestOverall;
     result.weightDecay = weightDecay;
     result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
@@ -368,7 +365,7 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     if (state.params.empty()) state.params = result.params;
     mlp.parameters() = state.params;
     MlpBatchWorkspace bws;
-    if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
+    if (!state.adam) state.adam = std::make_unique<Adam>(mlp.parameters().size());
     std::vector<float> average = result.params;
     SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
     std::vector<size_t> perm = d.train;
@@ -392,7 +389,7 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
         result.params = averageDecay > 0.0f ? average : mlp.parameters();
     } else {
         result.events.push_back("generation " + std::to_string(generation) + ": non-finite weights, update dropped");
-        state.adam = std::make_unique<Adam>(mlp.parameters().size(), learningRate);
+        state.adam = std::make_unique<Adam>(mlp.parameters().size());
         state.params = result.params;
     }
     mlp.parameters() = result.params;

@@ -5,10 +5,8 @@
 
 namespace nrad {
 
-Adam::Adam(size_t parameterCount, float learningRate, float beta1, float beta2, float epsilon)
-    : m_(parameterCount, 0.0f), v_(parameterCount, 0.0f), beta1_(beta1), beta2_(beta2), epsilon_(epsilon) {
-    (void)learningRate;
-}
+Adam::Adam(size_t parameterCount, float beta1, float beta2, float epsilon)
+    : m_(parameterCount, 0.0f), v_(parameterCount, 0.0f), beta1_(beta1), beta2_(beta2), epsilon_(epsilon) {}
 
 void Adam::step(std::vector<float>& params, const std::vector<float>& grad, float learningRate) {
     beta1Power_ *= beta1_;

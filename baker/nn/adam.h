@@ -10,7 +10,8 @@ namespace nrad {
 
 class Adam {
 public:
-    Adam(size_t parameterCount, float learningRate, float beta1 = 0.9f, float beta2 = 0.999f, float epsilon = 1e-8f);
+    explicit Adam(size_t parameterCount, float beta1 = 0.9f, float beta2 = 0.999f, float epsilon = 1e-8f);
+    // One step at this learning rate (the caller's schedule).
     void step(std::vector<float>& params, const std::vector<float>& grad, float learningRate);
 
 private:

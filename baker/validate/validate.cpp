@@ -21,6 +21,7 @@
 #include "baker/render/camera.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/neural_render.h"
+#include "baker/util/hash.h"
 
 namespace nrad {
 
@@ -31,13 +32,7 @@ using clock_type = std::chrono::steady_clock;
 
 double since(clock_type::time_point t0) { return std::chrono::duration<double>(clock_type::now() - t0).count(); }
 
-void fnv(uint64_t& h, const void* data, size_t bytes) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < bytes; ++i) {
-        h ^= p[i];
-        h *= 0x100000001b3ull;
-    }
-}
+void fnv(uint64_t& h, const void* data, size_t bytes) { fnv1a(h, data, bytes); }
 
 // Scores a first-hit render and splits its wall time by the thread-time shares.
 void score(MethodResult& m, const NeuralRenderStats& st, const ValidationResult& r, float exposure) {
@@ -251,7 +246,7 @@ void fnvTextureRef(uint64_t& h, const TextureRef& t) {
 }  // namespace
 
 uint64_t referenceSceneHash(const Scene& scene) {
-    uint64_t h = 0xcbf29ce484222325ull;
+    uint64_t h = kFnvOffsetBasis;
     const TriangleMesh& m = scene.mesh;
     fnvAll(h, m.positions);
     fnvAll(h, m.normals);

@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
     NetworkShape shape;  // 9-9-3, the asset's network
     Mlp mlp(shape);
     mlp.initialize(1, 1.0f);
-    Adam adam(mlp.parameters().size(), 0.01f);
+    Adam adam(mlp.parameters().size());
     MlpBatchWorkspace ws;
     const int batch = 32;
     std::vector<float> x(size_t(batch) * 9), grad(mlp.parameters().size());

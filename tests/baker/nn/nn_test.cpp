@@ -178,7 +178,7 @@ TEST(Adam, StepsByTheLearningRateAndFindsTheMinimum) {
     // The first step moves every parameter by the learning rate against its gradient's sign (bias
     // correction); a quadratic's minimum is then found.
     std::vector<float> p = {1.0f, -2.0f, 0.5f};
-    Adam adam(p.size(), 0.1f);
+    Adam adam(p.size());
     adam.step(p, {4.0f, -0.001f, 0.0f}, 0.1f);
     EXPECT_NEAR(p[0], 0.9f, 1e-5f);
     EXPECT_NEAR(p[1], -1.9f, 1e-4f);
