@@ -32,8 +32,6 @@ using clock_type = std::chrono::steady_clock;
 
 double since(clock_type::time_point t0) { return std::chrono::duration<double>(clock_type::now() - t0).count(); }
 
-void fnv(uint64_t& h, const void* data, size_t bytes) { fnv1a(h, data, bytes); }
-
 // Scores a first-hit render and splits its wall time by the thread-time shares.
 void score(MethodResult& m, const NeuralRenderStats& st, const ValidationResult& r, float exposure) {
     const Image& reference = r.reference;
@@ -232,15 +230,15 @@ namespace {
 template <class T>
 void fnvAll(uint64_t& h, const std::vector<T>& v) {
     const uint64_t count = v.size();
-    fnv(h, &count, sizeof count);
-    if (!v.empty()) fnv(h, v.data(), v.size() * sizeof(T));
+    fnv1a(h, &count, sizeof count);
+    if (!v.empty()) fnv1a(h, v.data(), v.size() * sizeof(T));
 }
 
 void fnvTextureRef(uint64_t& h, const TextureRef& t) {
     const int i[] = {t.texture, t.texCoord};
     const float f[] = {t.offset.x, t.offset.y, t.rotation, t.scale.x, t.scale.y};
-    fnv(h, i, sizeof i);
-    fnv(h, f, sizeof f);
+    fnv1a(h, i, sizeof i);
+    fnv1a(h, f, sizeof f);
 }
 
 }  // namespace
@@ -257,47 +255,47 @@ uint64_t referenceSceneHash(const Scene& scene) {
     fnvAll(h, m.triangles);
     fnvAll(h, m.materialIds);
     const uint64_t materials = scene.materials.size();
-    fnv(h, &materials, sizeof materials);
+    fnv1a(h, &materials, sizeof materials);
     for (const Material& mat : scene.materials) {  // everything but the name
         const float f[] = {mat.baseColor.x, mat.baseColor.y, mat.baseColor.z, mat.metallic, mat.roughness, mat.emission.x,
                            mat.emission.y, mat.emission.z, mat.specular, mat.specularColor.x, mat.specularColor.y, mat.specularColor.z,
                            mat.ior, float(mat.doubleSided), mat.transmission, mat.normalScale, float(int(mat.alphaMode)), mat.alpha,
                            mat.alphaCutoff};
-        fnv(h, f, sizeof f);
+        fnv1a(h, f, sizeof f);
         for (const TextureRef* t : {&mat.baseColorTexture, &mat.metallicRoughnessTexture, &mat.emissiveTexture,
                                     &mat.transmissionTexture, &mat.normalTexture})
             fnvTextureRef(h, *t);
     }
     const uint64_t textures = scene.textures.size();
-    fnv(h, &textures, sizeof textures);
+    fnv1a(h, &textures, sizeof textures);
     for (const Texture& t : scene.textures) {
         const int i[] = {t.width, t.height, int(t.wrapS), int(t.wrapT)};
-        fnv(h, i, sizeof i);
+        fnv1a(h, i, sizeof i);
         if (t.bytes.empty()) {
             const uint64_t count = t.texels.size();
-            fnv(h, &count, sizeof count);
-            if (count > 0) fnv(h, t.texels.data(), t.texels.size() * sizeof t.texels[0]);
+            fnv1a(h, &count, sizeof count);
+            if (count > 0) fnv1a(h, t.texels.data(), t.texels.size() * sizeof t.texels[0]);
         } else {  // the bytes and the tables that decode them (sRGB or linear)
             const uint64_t count = t.bytes.size();
-            fnv(h, &count, sizeof count);
-            fnv(h, t.bytes.data(), t.bytes.size());
-            if (t.colour) fnv(h, t.colour, 256 * sizeof(float));
-            if (t.alpha) fnv(h, t.alpha, 256 * sizeof(float));
+            fnv1a(h, &count, sizeof count);
+            fnv1a(h, t.bytes.data(), t.bytes.size());
+            if (t.colour) fnv1a(h, t.colour, 256 * sizeof(float));
+            if (t.alpha) fnv1a(h, t.alpha, 256 * sizeof(float));
         }
     }
     const uint64_t lights = scene.lights.size();
-    fnv(h, &lights, sizeof lights);
+    fnv1a(h, &lights, sizeof lights);
     for (const PunctualLight& l : scene.lights) {  // not runtimeDirect: the reference draws every light whole
         const float f[] = {float(int(l.type)), l.position.x, l.position.y, l.position.z, l.direction.x, l.direction.y, l.direction.z,
                            l.intensity.x, l.intensity.y, l.intensity.z, l.cosInnerCone, l.cosOuterCone, l.cosAngularRadius};
-        fnv(h, f, sizeof f);
+        fnv1a(h, f, sizeof f);
     }
     const Environment& e = scene.environment;
     const int active = e.active() ? 1 : 0;
-    fnv(h, &active, sizeof active);
+    fnv1a(h, &active, sizeof active);
     if (active) {
         const float f[] = {float(int(e.kind)), e.color.x, e.color.y, e.color.z, e.intensity, e.rotationDegrees, float(e.width), float(e.height)};
-        fnv(h, f, sizeof f);
+        fnv1a(h, f, sizeof f);
         fnvAll(h, e.texels);
     }
     return h;
@@ -307,17 +305,17 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     uint64_t h = referenceSceneHash(scene);
     const Camera& c = s.camera;
     int type = int(c.type);
-    fnv(h, &type, sizeof type);
-    fnv(h, &c.position, sizeof c.position);
-    fnv(h, &c.worldFromCamera, sizeof c.worldFromCamera);
+    fnv1a(h, &type, sizeof type);
+    fnv1a(h, &c.position, sizeof c.position);
+    fnv1a(h, &c.worldFromCamera, sizeof c.worldFromCamera);
     float f[] = {c.yfov, c.aspectRatio, c.xmag, c.ymag};
-    fnv(h, f, sizeof f);
+    fnv1a(h, f, sizeof f);
     int v[] = {width, height, s.referenceSpp, s.maxDepth, int(s.seed)};
-    fnv(h, v, sizeof v);
+    fnv1a(h, v, sizeof v);
     // Bump when the renderer's output changes (2: issue 12; 3: issue 14); "key 2" (issue 37): the scene's part
     // became referenceSceneHash, and near-mirror GGX and soft suns changed glossy and sunlit images.
     const char version[] = "nrad path tracer 3, key 2";
-    fnv(h, version, sizeof version);
+    fnv1a(h, version, sizeof version);
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
     return hex;

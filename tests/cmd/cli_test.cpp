@@ -38,6 +38,11 @@ RunResult run(const std::string& args) {
 
 bool noFilesIn(const std::string& dir) { return fs::is_empty(dir); }
 
+std::string readFileBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
 TEST(Cli, MalformedScenesExitThreeNamingTheFileAndWriteNothing) {
     std::ifstream f(test::sourcePath("tests/data/malformed/corpus.json"));
     nlohmann::json corpus = nlohmann::json::parse(f);
@@ -262,16 +267,12 @@ TEST(CliBake, EverySettingFlagIsAConfigKey) {
     EXPECT_FALSE(fs::exists(dir + "/x.nrad"));
     // The keys added with this test do what their flags do.
     const std::string small = " --grid 2 --points 300 --paths 2 --epochs 10 -q";
-    auto bytes = [](const std::string& path) {
-        std::ifstream f(path, std::ios::binary);
-        return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    };
     std::ofstream(dir + "/keys.json") << R"({"nee": "uniform", "demodulate": false, "metadata": false})";
     ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/flags.nrad' --nee uniform --no-demodulate --no-metadata" + small).exitCode, 0);
     ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/keys.nrad' --config '" + dir + "/keys.json'" + small).exitCode, 0);
     ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/plain.nrad'" + small).exitCode, 0);
-    EXPECT_EQ(bytes(dir + "/flags.nrad"), bytes(dir + "/keys.nrad"));
-    EXPECT_NE(bytes(dir + "/flags.nrad"), bytes(dir + "/plain.nrad"));
+    EXPECT_EQ(readFileBytes(dir + "/flags.nrad"), readFileBytes(dir + "/keys.nrad"));
+    EXPECT_NE(readFileBytes(dir + "/flags.nrad"), readFileBytes(dir + "/plain.nrad"));
 }
 
 TEST(CliBake, BadFlagsAndScenesWriteNothing) {
@@ -628,10 +629,6 @@ TEST(CliEnvironment, SunAndEngineDrawnLights) {
 // Mixed lighting is bake's default for sharp lights (issue 38): without --runtime-direct a sharp sun's direct
 // light is left to the engine and the bake says so; --runtime-direct none bakes it all; a soft sun stays baked
 // (an engine cannot draw it); a scene without punctual lights bakes the same bytes either way.
-std::string readFileBytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 TEST(CliEnvironment, SharpLightsAreEngineDrawnByDefault) {
     std::string dir = test::temporaryDirectory();
