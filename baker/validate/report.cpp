@@ -299,6 +299,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
         j["baseline"] = methodJson(*r.baseline);
         j["baseline"]["probes"] = {r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z};
         j["baseline"]["training_samples"] = r.baselineTrainingSamples;
+        j["baseline"]["training_paths"] = r.baselineTrainingPaths;
         j["baseline"]["training_settings"] = r.baselineSamplesNote;
         j["baseline"]["fit"] = {{"cg_iterations", r.baselineFit.iterations}, {"relative_residual", r.baselineFit.relativeResidual},
                                 {"train_relmse", r.baselineFit.trainRelMse}};

@@ -31,7 +31,8 @@ namespace nrad {
 // (18,792 probes, 208 samples each, sun and sky), seen from outside (the default camera) / from above into the
 // level (docs/usage.md): every sample 0.05706 / 0.5497; 25 points per probe with 32 paths 0.05621 / 0.5713,
 // 8 paths 0.0548 / 0.5604, 4 paths 0.05467 / 0.5973, 2 paths 0.0616 / -; 50 per probe with 4 paths 0.05676 /
-// 0.5424; 12 per probe with 18 paths 0.06148, 10 with 32 0.06798. docs/usage.md ("Baseline") has the times.
+// 0.5424; 12 per probe with 18 paths 0.06148, 10 with 32 0.06798 (the fit stopped at a stall of 1e-3).
+// docs/usage.md ("Baseline") has the times.
 constexpr uint32_t kBaselinePointsPerProbe = 25;
 constexpr uint32_t kBaselineMinPoints = 40000;
 constexpr uint32_t kBaselinePathsPerProbe = 200;
@@ -152,6 +153,7 @@ struct ValidationResult {
     ShFitStats baselineFit;
     glm::uvec3 baselineProbes{0};
     size_t baselineTrainingSamples = 0;
+    uint64_t baselineTrainingPaths = 0;  // the paths traced for its samples' targets
     std::string baselineSamplesNote;  // where the baseline's training settings came from
     double baselineSeconds = 0.0;  // sampling + fit
     nlohmann::json assetMetadata;  // parsed META, or null

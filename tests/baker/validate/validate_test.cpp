@@ -576,6 +576,10 @@ TEST(Validate, BaselineTrainsOnABudgetPerProbeTheSameForAnyThreads) {
     EXPECT_LT(20 * probes, 20000u);  // the budget is what limits
     EXPECT_GT(one.baselineTrainingSamples, 20 * probes / 2);  // less the points no viewer sees
     EXPECT_LE(one.baselineTrainingSamples, 20 * probes + 8 * 64);  // plus at most the floor of the 8 voxels
+    // The bake's 2 paths a point and no more: noisy targets get no extra paths here (2 paths are noisy enough
+    // that the bake's default would have given most points 4x).
+    EXPECT_GE(one.baselineTrainingPaths, 2 * one.baselineTrainingSamples);
+    EXPECT_LE(one.baselineTrainingPaths, 2 * (20 * probes + 8 * 64));
     EXPECT_NE(one.baselineSamplesNote.find("20 per probe"), std::string::npos) << one.baselineSamplesNote;
     EXPECT_EQ(one.baselineSamplesNote.find("paths a point"), std::string::npos) << one.baselineSamplesNote;  // within 2^21
     EXPECT_GT(all.baselineTrainingSamples, 15000u);
