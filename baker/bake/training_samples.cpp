@@ -8,7 +8,7 @@
 
 #include <tbb/parallel_for.h>
 
-#include "baker/lights/online_render.h"
+#include "baker/render/online_render.h"
 #include "baker/render/surface.h"
 
 namespace nrad {

@@ -12,7 +12,7 @@
 #include "baker/render/image_io.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/neural_render.h"
-#include "baker/lights/online_render.h"
+#include "baker/render/online_render.h"
 #include "baker/render/path_tracer.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"

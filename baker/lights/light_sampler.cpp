@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "baker/render/surface.h"
+#include "baker/scene/geometry.h"
 
 namespace nrad {
 

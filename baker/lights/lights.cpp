@@ -7,8 +7,8 @@
 #include <limits>
 
 #include "baker/lights/environment_light.h"
-#include "baker/render/bsdf.h"
-#include "baker/render/surface.h"
+#include "baker/scene/geometry.h"
+#include "baker/scene/material_lookup.h"
 
 namespace nrad {
 

@@ -89,18 +89,6 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
     build(scene.mesh, needsCoverage(scene) ? &scene : nullptr);
 }
 
-float rayOffset(const glm::vec3& p) {
-    float m = std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z)));
-    // A few hundred float ulps of the largest coordinate, with a floor for points near the origin.
-    return std::max(m * 4e-6f, 1e-30f);
-}
-
-float triangleMargin(const TriangleMesh& mesh, uint32_t t) {
-    const glm::uvec3& tri = mesh.triangles[t];
-    glm::vec3 m = glm::max(glm::abs(mesh.positions[tri.x]), glm::max(glm::abs(mesh.positions[tri.y]), glm::abs(mesh.positions[tri.z])));
-    return rayOffset(m);
-}
-
 void Accel::build(const TriangleMesh& mesh, const Scene* coverage) {
     impl_->faces.resize(mesh.triangles.size());
     for (uint32_t t = 0; t < uint32_t(mesh.triangles.size()); ++t)

@@ -9,20 +9,10 @@
 
 #include <glm/glm.hpp>
 
+#include "baker/scene/geometry.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
-
-// A few hundred float ulps of the largest coordinate magnitude of p (with a floor near the origin): a
-// distance beyond the rounding of anything computed from coordinates of that size, at any scene scale.
-float rayOffset(const glm::vec3& p);
-
-// Margin around triangle t's plane within which a ray leaving (or aiming at) a point of it does not look
-// for hits: rayOffset of the largest coordinate of its three vertices. Both the rounding of a point
-// interpolated on the triangle and Embree's rounding of a ray's distance to its plane scale with its
-// vertices' coordinates, not the point's: on a large tilted triangle through the origin, a margin from
-// the point's own coordinates let 46% of the shadow rays near the origin find their own triangle.
-float triangleMargin(const TriangleMesh& mesh, uint32_t t);
 
 struct Hit {
     float t = std::numeric_limits<float>::infinity();

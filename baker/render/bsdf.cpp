@@ -38,14 +38,6 @@ glm::vec3 sampleVisibleNormal(const glm::vec3& wo, float alpha, const glm::vec2&
 
 }  // namespace
 
-Frame Frame::fromNormal(const glm::vec3& n) {
-    // Duff et al. 2017, "Building an Orthonormal Basis, Revisited".
-    float sign = std::copysign(1.0f, n.z);
-    float a = -1.0f / (sign + n.z);
-    float b = n.x * n.y * a;
-    return {glm::vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), glm::vec3(b, sign + n.y * n.y * a, -n.y), n};
-}
-
 // D = alpha^2 / (pi (sin^2 + alpha^2 cos^2)^2). The textbook form cos^2 (alpha^2 - 1) + 1 cancels near the
 // mirror direction: at alpha 1e-3 its 1e-6 is the difference of two numbers near one, 1 - cos^2 keeps a few
 // bits, D came out up to tens of percent off, and eval and pdf, rounding the half vector differently, gave

@@ -11,15 +11,9 @@
 
 #include <glm/glm.hpp>
 
-namespace nrad {
+#include "baker/scene/geometry.h"
 
-// Orthonormal frame around a unit normal; toLocal maps the normal to +Z.
-struct Frame {
-    glm::vec3 s, t, n;
-    static Frame fromNormal(const glm::vec3& n);
-    glm::vec3 toLocal(const glm::vec3& v) const { return {glm::dot(v, s), glm::dot(v, t), glm::dot(v, n)}; }
-    glm::vec3 toWorld(const glm::vec3& v) const { return s * v.x + t * v.y + n * v.z; }
-};
+namespace nrad {
 
 struct BsdfParams {
     glm::vec3 baseColor{1.0f};

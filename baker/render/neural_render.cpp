@@ -64,12 +64,9 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
-                    uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
                     for (int s = 0; s < settings.spp; ++s) {
-                        Sampler sampler(stream, uint32_t(s));
-                        glm::vec2 jitter = sampler.get2D();
                         glm::vec3 o, d;
-                        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                        cameraSample(rays, x, y, settings.seed, uint32_t(s), o, d);  // first hits only: no more dimensions
                         Hit hit = accel.intersect(o, d);
                         if (!hit.valid()) {
                             // The sky seen directly: the engine draws it, exactly, as it draws emission.

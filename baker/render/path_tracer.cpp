@@ -633,13 +633,10 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
             if (!batched) {
                 for (int y = y0; y < y1; ++y)
                     for (int x = x0; x < x1; ++x) {
-                        uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
                         glm::dvec3 sum(0.0);
                         for (int s = 0; s < settings.spp; ++s) {
-                            Sampler sampler(stream, uint32_t(s));
-                            glm::vec2 jitter = sampler.get2D();
                             glm::vec3 o, d;
-                            rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                            Sampler sampler = cameraSample(rays, x, y, settings.seed, uint32_t(s), o, d);
                             glm::vec3 L = radiance(o, d, sampler, settings.maxDepth, counters);
                             if (isFinite(L))
                                 sum += glm::dvec3(L);
@@ -770,12 +767,9 @@ std::vector<RecordedRay> PathTracer::recordRays(const Camera& camera, const Rend
     RayCounters counters;
     for (int y = 0; y < settings.height; ++y)
         for (int x = 0; x < settings.width; ++x) {
-            uint32_t stream = pixelStream(uint32_t(x), uint32_t(y), settings.seed);
             for (int s = 0; s < settings.spp; ++s) {
-                Sampler sampler(stream, uint32_t(s));
-                glm::vec2 jitter = sampler.get2D();
                 glm::vec3 o, d;
-                rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+                Sampler sampler = cameraSample(rays, x, y, settings.seed, uint32_t(s), o, d);
                 radiance(o, d, sampler, settings.maxDepth, counters, &out);
             }
         }

@@ -9,22 +9,6 @@ namespace nrad {
 
 namespace {
 
-glm::vec2 texCoord(const TriangleMesh& mesh, const glm::uvec3& tri, float b0, float b1, float b2, int set) {
-    const std::vector<glm::vec2>& uv = set == 1 ? mesh.uv1 : mesh.uv0;
-    return b0 * uv[tri.x] + b1 * uv[tri.y] + b2 * uv[tri.z];
-}
-
-glm::vec4 lookup(const Scene& scene, const TextureRef& ref, const TriangleMesh& mesh, const glm::uvec3& tri, float b0,
-                 float b1, float b2) {
-    if (!ref.valid()) return glm::vec4(1.0f);
-    return scene.textures[size_t(ref.texture)].sample(ref.apply(texCoord(mesh, tri, b0, b1, b2, ref.texCoord)));
-}
-
-glm::vec4 vertexColor(const TriangleMesh& mesh, const glm::uvec3& tri, float b0, float b1, float b2) {
-    if (mesh.colors.empty()) return glm::vec4(1.0f);
-    return b0 * mesh.colors[tri.x] + b1 * mesh.colors[tri.y] + b2 * mesh.colors[tri.z];
-}
-
 // The shading normal perturbed by the material's tangent-space normal map (glTF: n = normalize(T x + B y + N z),
 // x and y scaled by normalScale, B = w cross(N, T)). N is the interpolated vertex normal on the winding side;
 // returns N unchanged where the triangle has no tangent frame.
@@ -60,33 +44,6 @@ inline bool flatUnitNormal(const glm::vec3& n0, const glm::vec3& n1, const glm::
 float SurfaceInteraction::spawnDistance(const glm::vec3& w) const {
     float c = std::abs(glm::dot(w, ng));
     return c > 0.0f ? std::max(margin, rayOffset(p)) / c : std::numeric_limits<float>::infinity();
-}
-
-namespace {
-// emittedRadiance with the triangle's material already found.
-glm::vec3 emittedRadiance(const Scene& scene, const Material& m, uint32_t triangle, float u, float v, bool front) {
-    if (!m.emissive() || (!front && !m.doubleSided)) return glm::vec3(0.0f);
-    glm::vec3 e = m.emission;
-    if (m.emissiveTexture.valid())
-        e *= glm::vec3(lookup(scene, m.emissiveTexture, scene.mesh, scene.mesh.triangles[triangle], 1.0f - u - v, u, v));
-    return e;
-}
-}  // namespace
-
-glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front) {
-    return emittedRadiance(scene, scene.materials[scene.mesh.materialIds[triangle]], triangle, u, v, front);
-}
-
-float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v) {
-    const Material& m = scene.materials[scene.mesh.materialIds[triangle]];
-    if (m.alphaMode == Material::AlphaMode::Opaque) return 1.0f;
-    const glm::uvec3& tri = scene.mesh.triangles[triangle];
-    float b0 = 1.0f - u - v;
-    float a = m.alpha * vertexColor(scene.mesh, tri, b0, u, v).w;
-    if (m.baseColorTexture.valid()) a *= lookup(scene, m.baseColorTexture, scene.mesh, tri, b0, u, v).w;
-    a = std::clamp(a, 0.0f, 1.0f);
-    if (m.alphaMode == Material::AlphaMode::Mask) return a >= m.alphaCutoff ? 1.0f : 0.0f;
-    return a;
 }
 
 eval::Surface shadingSurface(const SurfaceInteraction& si) {

@@ -7,6 +7,7 @@
 
 #include "baker/render/accel.h"
 #include "baker/render/bsdf.h"
+#include "baker/scene/material_lookup.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
@@ -29,14 +30,6 @@ struct SurfaceInteraction {
     // taken: those within `margin` of the surface's plane, where the surface itself could be found again.
     float spawnDistance(const glm::vec3& w) const;
 };
-
-// Emitted radiance of a triangle at barycentrics (u, v), seen from a direction on the side `front`.
-glm::vec3 emittedRadiance(const Scene& scene, uint32_t triangle, float u, float v, bool front);
-
-// Coverage of triangle `triangle` at barycentrics (u, v): 1 for opaque materials; for MASK 1 or 0 (alpha
-// against the cutoff); for BLEND alpha itself, the probability that a ray stops there. Alpha is the
-// base colour factor's times the base colour texture's times COLOR_0's.
-float surfaceOpacity(const Scene& scene, uint32_t triangle, float u, float v);
 
 // The material terms of the evaluation contract (nrad/eval.h) at an interaction: what an engine's G-buffer
 // holds there.

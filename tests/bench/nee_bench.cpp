@@ -28,7 +28,7 @@
 #include "baker/render/image_io.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/lights/light_selection.h"
-#include "baker/lights/online_render.h"
+#include "baker/render/online_render.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/validate/metrics.h"

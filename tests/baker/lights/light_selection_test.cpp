@@ -11,7 +11,7 @@
 #include "baker/render/accel.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/lights/light_selection.h"
-#include "baker/lights/online_render.h"
+#include "baker/render/online_render.h"
 #include "baker/render/path_tracer.h"
 #include "baker/render/surface.h"
 #include "baker/scene/gltf_loader.h"

@@ -1,5 +1,5 @@
 // Rendering in rounds with online training of the light-selection network.
-#include "baker/lights/online_render.h"
+#include "baker/render/online_render.h"
 
 #include <algorithm>
 #include <chrono>
@@ -96,10 +96,8 @@ OnlineRenderResult renderOnline(const PathTracer& tracer, LightSelector* trainee
     auto cameraPath = [&](uint64_t k, uint32_t seed, uint32_t index, NeeTrace& nee, RayCounters& c) {
         uint32_t pixel = order[k % P];
         int x = int(pixel % uint32_t(W)), y = int(pixel / uint32_t(W));
-        Sampler sampler(pixelStream(uint32_t(x), uint32_t(y), seed), index);
-        glm::vec2 jitter = sampler.get2D();
         glm::vec3 o, d;
-        rays.generate(float(x) + jitter.x, float(y) + jitter.y, o, d);
+        Sampler sampler = cameraSample(rays, x, y, seed, index, o, d);
         nee.firstLight = -1;
         return tracer.radiance(o, d, sampler, settings.maxDepth, c, nullptr, &nee);
     };
