@@ -149,220 +149,304 @@ static nlohmann::json environmentMetadata(const Environment& e) {
     return j;
 }
 
-BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
-    BakeResult result;
-    auto t0 = std::chrono::steady_clock::now();
-    Accel accel(scene);
-    LightSampler lights(scene);
-    NeeSettings nee = settings.nee;
-    nee.seed ^= settings.samples.seed;
-    LightSelector selector(lights, scene.bounds, nee);
-    PathTracer tracer(scene, accel, lights, &selector);
-    tracer.setExcludeEngineDrawnDirect(true);  // mixed lighting: the asset holds those lights' indirect light only
-    tracer.setRouletteThreshold(kTrainingRouletteThreshold);
-    VoxelGrid grid(scene.bounds, settings.grid);
-    SurfacePieces pieces(scene.mesh, grid);
-    result.surfaceArea = pieces.totalArea();
-    result.timings.setup = since(t0);
+namespace {
 
-    auto t1 = std::chrono::steady_clock::now();
-    std::vector<TrainingSample> samples =
-        generateTrainingSamples(scene, tracer, grid, pieces, settings.samples, result.sampleStats, progress.sampling,
-                                &selector);
-    result.sampleCount = samples.size();
-    result.timings.sampling = since(t1);
+// What the bake traces with: the scene's rays, its lights and their selection, the path tracer of the
+// training targets, and the voxel grid with the surface in each voxel.
+struct BakeTracing {
+    Accel accel;
+    LightSampler lights;
+    LightSelector selector;
+    PathTracer tracer;
+    VoxelGrid grid;
+    SurfacePieces pieces;
 
-    format::Topology topology;
-    topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
-    topology.weightEncoding = settings.encoding;
-    topology.outputTransform =
-        settings.train.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-
-    // The samples of each cell's network (its own, plus its neighbours' within the blending band, in the
-    // fixed sample order), then train every occupied cell in parallel. Cells are the grid's voxels, or with a
-    // budget the leaves of the adaptive tree, refined on these very samples.
-    const float band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
-    std::vector<std::vector<VoxelSample>> byVoxel;
-    const bool budgeted = settings.partition.budgetBytes > 0;
-    format::Grid lattice = grid.grid();
-    MetadataReserve reserve;
-    auto tPartition = std::chrono::steady_clock::now();
-    std::vector<float> learned;  // what the partition sees of a sample: log(0.1 + its learned luminance)
-    if (budgeted || settings.walls.enabled) {
-        learned.resize(samples.size());
-        for (size_t i = 0; i < samples.size(); ++i) {
-            const glm::vec3 y = settings.train.demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
-            learned[i] = float(std::log(std::max(0.0, luminance(y)) + 0.1));
-        }
+    static NeeSettings seeded(const BakeSettings& settings) {
+        NeeSettings nee = settings.nee;
+        nee.seed ^= settings.samples.seed;
+        return nee;
     }
+    BakeTracing(const Scene& scene, const BakeSettings& settings)
+        : accel(scene),
+          lights(scene),
+          selector(lights, scene.bounds, seeded(settings)),
+          tracer(scene, accel, lights, &selector),
+          grid(scene.bounds, settings.grid),
+          pieces(scene.mesh, grid) {
+        tracer.setExcludeEngineDrawnDirect(true);  // mixed lighting: the asset holds those lights' indirect light only
+        tracer.setRouletteThreshold(kTrainingRouletteThreshold);
+    }
+};
+
+// The cells the networks cover (the grid's voxels, or the leaves of a tree on `lattice`: `adaptive`) and the
+// samples of each cell's network.
+struct BakeCells {
+    format::Grid lattice;
+    float band = 0.0f;
+    bool budgeted = false, adaptive = false;
+    MetadataReserve reserve;  // what a budgeted asset keeps for its metadata
+    std::vector<std::vector<VoxelSample>> byVoxel;
+};
+
+// What the partition sees of a sample: log(0.1 + its learned luminance).
+std::vector<float> learnedValues(const std::vector<TrainingSample>& samples, bool demodulate) {
+    std::vector<float> learned(samples.size());
+    for (size_t i = 0; i < samples.size(); ++i) {
+        const glm::vec3 y = demodulate ? samples[i].radiance / demodulationDivisor(samples[i]) : samples[i].radiance;
+        learned[i] = float(std::log(std::max(0.0, luminance(y)) + 0.1));
+    }
+    return learned;
+}
+
+// The metadata's bytes, exactly: a budgeted asset's metadata leaves out the per-network error list (--stats
+// has it), so it depends on nothing that refining changes.
+MetadataReserve metadataReserve(const Scene& scene, const BakeSettings& settings, const BakeResult& result) {
+    if (!settings.metadata) return {};
+    BakeResult none;
+    none.sampleCount = result.sampleCount;
+    if (settings.training == TrainingMethod::Integral) {
+        // The rounds add samples and set their points by the networks: reserve their largest numbers.
+        none.sampleCount = std::numeric_limits<uint32_t>::max();
+        none.voxels.resize(2000);  // roundPoints' cap
+    }
+    return {assetMetadata(scene, settings, none).size(), 0};
+}
+
+eval::Partition cellPartition(const BakeCells& cells, const AdaptivePartition& ap) {
+    return cells.adaptive ? eval::Partition(cells.lattice, cells.band, ap.tree, ap.leafCount)
+                          : eval::Partition(cells.lattice, cells.band, {}, 0);
+}
+
+// The cells and each one's samples (its own, plus its neighbours' within the blending band, in the fixed
+// sample order): the grid's voxels, split at walls, or with a budget the leaves of the adaptive tree,
+// refined on these very samples (into result.partition).
+BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const VoxelGrid& grid,
+                         const std::vector<TrainingSample>& samples, const format::Topology& topology, BakeResult& result) {
+    BakeCells cells;
+    cells.band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
+    cells.budgeted = settings.partition.budgetBytes > 0;
+    cells.lattice = grid.grid();
+    std::vector<float> learned;
+    if (cells.budgeted || settings.walls.enabled) learned = learnedValues(samples, settings.train.demodulate);
     bool walled = false;  // the grid with its cells split at walls: a tree on a finer lattice
-    if (!budgeted && settings.walls.enabled) {
+    if (!cells.budgeted && settings.walls.enabled) {
         AdaptivePartition ap = splitWalls(grid.grid(), samples, learned, settings.walls);
         const format::Grid& g = grid.grid();
         if (ap.leafCount > g.dims[0] * g.dims[1] * g.dims[2]) {
             walled = true;
             result.partition = std::move(ap);
-            lattice = g;
-            for (int k = 0; k < 3; ++k) lattice.dims[k] = g.dims[k] * wallRefine(g);
+            for (int k = 0; k < 3; ++k) cells.lattice.dims[k] = g.dims[k] * wallRefine(g);
         }
     }
-    const bool adaptive = budgeted || walled;  // the cells are a tree's leaves
-    if (budgeted) {
-        lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
-        // The metadata, exactly: a budgeted asset's metadata leaves out the per-network error list (--stats has
-        // it), so it depends on nothing that refining changes.
-        BakeResult none;
-        none.sampleCount = result.sampleCount;
-        if (settings.training == TrainingMethod::Integral) {
-            // The rounds add samples and set their points by the networks: reserve their largest numbers.
-            none.sampleCount = std::numeric_limits<uint32_t>::max();
-            none.voxels.resize(2000);  // roundPoints' cap
-        }
-        reserve = {assetMetadata(scene, settings, none).size(), 0};
-        if (!settings.metadata) reserve = {};
-        result.partition = refinePartition(lattice, samples, learned, topology, settings.partition, reserve,
+    cells.adaptive = cells.budgeted || walled;  // the cells are a tree's leaves
+    if (cells.budgeted) {
+        cells.lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
+        cells.reserve = metadataReserve(scene, settings, result);
+        result.partition = refinePartition(cells.lattice, samples, learned, topology, settings.partition, cells.reserve,
                                            settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer());
     }
-    if (adaptive) {
+    if (cells.adaptive) {
         const AdaptivePartition& ap = result.partition;
-        const eval::Partition partition(lattice, band, ap.tree, ap.leafCount);
-        byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
+        const eval::Partition partition = cellPartition(cells, ap);
+        cells.byVoxel = samplesByNetwork(partition, ap.leafOfSample, samples, [&](size_t i) {
             return positionInCell(partition, ap, true, grid, samples[i].position, ap.leafOfSample[i]);
         });
     } else {
-        byVoxel = samplesByNetwork(grid, band, samples);
+        cells.byVoxel = samplesByNetwork(grid, cells.band, samples);
     }
-    result.timings.partition = since(tPartition);
-    std::vector<uint32_t> occupied;
-    for (uint32_t v = 0; v < uint32_t(byVoxel.size()); ++v)
-        if (!byVoxel[v].empty()) occupied.push_back(v);
-    auto t2 = std::chrono::steady_clock::now();
-    result.voxels.resize(occupied.size());
-    TrainSettings startTrain = settings.train;  // integral training: a short start (IntegralSettings)
+    return cells;
+}
+
+// What the first training of the networks runs with: the settings, or for training within the integral
+// equation its short start (IntegralSettings).
+TrainSettings startTrainSettings(const BakeSettings& settings) {
+    TrainSettings start = settings.train;
     if (settings.training == TrainingMethod::Integral) {
-        startTrain.epochs = std::min(startTrain.epochs, settings.integral.startEpochs);
-        startTrain.patience = std::min(startTrain.patience, settings.integral.startPatience);
-        if (startTrain.weightDecays.size() > 1) startTrain.weightDecays.resize(1);
-        startTrain.restarts = settings.integral.restarts();
+        start.epochs = std::min(start.epochs, settings.integral.startEpochs);
+        start.patience = std::min(start.patience, settings.integral.startPatience);
+        if (start.weightDecays.size() > 1) start.weightDecays.resize(1);
+        start.restarts = settings.integral.restarts();
     }
+    return start;
+}
+
+// Trains every occupied cell's network, in parallel, into result.voxels.
+void trainCells(const BakeSettings& settings, const BakeCells& cells, const BakeProgress& progress, BakeResult& result) {
+    std::vector<uint32_t> occupied;
+    for (uint32_t v = 0; v < uint32_t(cells.byVoxel.size()); ++v)
+        if (!cells.byVoxel[v].empty()) occupied.push_back(v);
+    result.voxels.resize(occupied.size());
+    const TrainSettings start = startTrainSettings(settings);
     std::atomic<size_t> done{0};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k != r.end(); ++k) {
-            result.voxels[k] = trainVoxel(occupied[k], byVoxel[occupied[k]], startTrain);
+            result.voxels[k] = trainVoxel(occupied[k], cells.byVoxel[occupied[k]], start);
             size_t d = ++done;
             if (progress.training) progress.training(double(d) / double(occupied.size()));
         }
     });
-    result.timings.training = since(t2);
+}
 
-    const eval::Partition partition = adaptive ? eval::Partition(lattice, band, result.partition.tree, result.partition.leafCount)
-                                               : eval::Partition(lattice, band, {}, 0);
-    auto assemble = [&]() {
-        format::Asset& a = result.asset;
-        a = format::Asset{};
-        a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
-        if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
-        a.grid = lattice;
-        if (band > 0.0f) {
-            a.header.flags |= format::kFlagBlended;
-            a.grid.blendBand = band;
-        }
-        if (adaptive) {
-            a.header.flags |= format::kFlagTree;
-            a.tree = result.partition.tree;
-            a.leafCount = result.partition.leafCount;
-        }
-        a.topology = topology;
-        for (const VoxelTrainResult& v : result.voxels) {
-            a.voxels.push_back({v.voxel, v.scale});
-            a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
-        }
-        if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
-    };
-
-    if (settings.training == TrainingMethod::Integral) {
-        // Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are a
-        // bounce or two with the networks as they stood for the rest of the path, each network continuing from
-        // where it was. Targets of a round come from the networks before it (frozen while it is sampled), and
-        // every network trains on its own samples, so the result does not depend on the threads.
-        const IntegralSettings& in = settings.integral;
-        GenerationStats start;
-        start.samples = samples.size();
-        start.rays = result.sampleStats.rays.total();
-        start.samplingSeconds = result.timings.sampling;
-        start.trainingSeconds = result.timings.training;
-        for (const VoxelTrainResult& v : result.voxels) start.heldOutRelMse += v.heldOutRelMse / double(std::max<size_t>(1, result.voxels.size()));
-        start.learningRate = settings.train.learningRate;
-        result.generations.push_back(start);
-        if (progress.generation) {
-            assemble();
-            progress.generation(0, result);
-        }
-        NetworkField field(partition, topology, topology.outputTransform, settings.train.demodulate);
-        std::vector<NetworkState> states(result.voxels.size());
-        for (size_t k = 0; k < states.size(); ++k) {
-            field.set(result.voxels[k].voxel, result.voxels[k].params, result.voxels[k].scale);
-            states[k].result = result.voxels[k];
-        }
-        const ScatteredRadiance tail = [&field](const SurfaceInteraction& si) { return field.scattered(si); };
-        SampleSettings round = settings.samples;
-        round.points = in.points > 0 ? in.points : roundPoints(states.size());
-        round.paths = std::max(1u, in.paths);
-        round.firstPoint = settings.samples.points;
-        TargetEstimator estimator{&tail, std::max(1, in.bounces)};
-        for (uint32_t g = 1; g <= in.generations; ++g) {
-            GenerationStats gs;
-            gs.generation = g;
-            const float f = in.generations > 1 ? float(g - 1) / float(in.generations - 1) : 1.0f;
-            gs.learningRate = exponentialDecay(in.learningRate, in.finalLearningRate / in.learningRate, f);
-            round.generation = g;
-            auto ts = std::chrono::steady_clock::now();
-            SampleStats stats;
-            std::vector<TrainingSample> fresh = generateTrainingSamples(scene, tracer, grid, pieces, round, stats, {}, nullptr, estimator);
-            round.firstPoint += round.points;
-            gs.samples = fresh.size();
-            gs.rays = stats.rays.total();
-            result.sampleStats.rays += stats.rays;
-            result.sampleStats.nonFinitePaths += stats.nonFinitePaths;
-            result.sampleStats.hiddenSamples += stats.hiddenSamples;
-            result.sampleCount += fresh.size();
-            std::vector<uint32_t> cells(fresh.size());
-            tbb::parallel_for(size_t(0), fresh.size(), [&](size_t i) {
-                cells[i] = adaptive ? cellOfPoint(partition, fresh[i].position) : fresh[i].voxel;
-            });
-            std::vector<std::vector<VoxelSample>> byCell = samplesByNetwork(partition, cells, fresh, [&](size_t i) {
-                return positionInCell(partition, result.partition, adaptive, grid, fresh[i].position, cells[i]);
-            });
-            gs.samplingSeconds = since(ts);
-            auto tt = std::chrono::steady_clock::now();
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, states.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-                for (size_t k = r.begin(); k != r.end(); ++k) {
-                    const std::vector<VoxelSample>& mine = byCell[states[k].result.voxel];
-                    if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, in.averageDecay, states[k]);
-                }
-            });
-            for (size_t k = 0; k < states.size(); ++k) {
-                field.set(states[k].result.voxel, states[k].result.params, states[k].result.scale);
-                gs.heldOutRelMse += states[k].result.heldOutRelMse / double(states.size());
-            }
-            gs.trainingSeconds = since(tt);
-            result.timings.sampling += gs.samplingSeconds;
-            result.timings.training += gs.trainingSeconds;
-            result.generations.push_back(gs);
-            if (progress.generation) {
-                for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
-                assemble();
-                progress.generation(g, result);
-            }
-        }
-        for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
+// The asset of the networks as they stand (into result.asset).
+void assembleAsset(const Scene& scene, const BakeSettings& settings, const BakeCells& cells, const format::Topology& topology,
+                   BakeResult& result) {
+    format::Asset& a = result.asset;
+    a = format::Asset{};
+    a.header.flags = format::kFlagScatteredRadiance;  // the training targets are L - Le (training_samples.h)
+    if (settings.train.demodulate) a.header.flags |= format::kFlagDemodulated;  // ... over the reflectance (trainer.h)
+    a.grid = cells.lattice;
+    if (cells.band > 0.0f) {
+        a.header.flags |= format::kFlagBlended;
+        a.grid.blendBand = cells.band;
     }
+    if (cells.adaptive) {
+        a.header.flags |= format::kFlagTree;
+        a.tree = result.partition.tree;
+        a.leafCount = result.partition.leafCount;
+    }
+    a.topology = topology;
+    for (const VoxelTrainResult& v : result.voxels) {
+        a.voxels.push_back({v.voxel, v.scale});
+        a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
+    }
+    if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
+}
 
-    assemble();
-    const format::Asset& a = result.asset;
-    if (budgeted) {
+// The start of training within the integral equation as its generation 0.
+GenerationStats startGeneration(const BakeSettings& settings, const BakeResult& result) {
+    GenerationStats start;
+    start.samples = result.sampleCount;
+    start.rays = result.sampleStats.rays.total();
+    start.samplingSeconds = result.timings.sampling;
+    start.trainingSeconds = result.timings.training;
+    for (const VoxelTrainResult& v : result.voxels) start.heldOutRelMse += v.heldOutRelMse / double(std::max<size_t>(1, result.voxels.size()));
+    start.learningRate = settings.train.learningRate;
+    return start;
+}
+
+// One round's fresh samples (into `fresh`), traced with the networks as the tail of their paths; returns them
+// by cell (pointing into `fresh`).
+std::vector<std::vector<VoxelSample>> roundSamples(const Scene& scene, const BakeTracing& tracing, const BakeCells& cells,
+                                                   const eval::Partition& partition, const SampleSettings& round,
+                                                   const TargetEstimator& estimator, std::vector<TrainingSample>& fresh,
+                                                   GenerationStats& gs, BakeResult& result) {
+    SampleStats stats;
+    fresh = generateTrainingSamples(scene, tracing.tracer, tracing.grid, tracing.pieces, round, stats, {}, nullptr, estimator);
+    gs.samples = fresh.size();
+    gs.rays = stats.rays.total();
+    result.sampleStats.rays += stats.rays;
+    result.sampleStats.nonFinitePaths += stats.nonFinitePaths;
+    result.sampleStats.hiddenSamples += stats.hiddenSamples;
+    result.sampleCount += fresh.size();
+    std::vector<uint32_t> ids(fresh.size());
+    tbb::parallel_for(size_t(0), fresh.size(), [&](size_t i) {
+        ids[i] = cells.adaptive ? cellOfPoint(partition, fresh[i].position) : fresh[i].voxel;
+    });
+    return samplesByNetwork(partition, ids, fresh, [&](size_t i) {
+        return positionInCell(partition, result.partition, cells.adaptive, tracing.grid, fresh[i].position, ids[i]);
+    });
+}
+
+// Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are a bounce or
+// two with the networks as they stood for the rest of the path, each network continuing from where it was.
+// Targets of a round come from the networks before it (frozen while it is sampled), and every network trains
+// on its own samples, so the result does not depend on the threads.
+void integralRounds(const Scene& scene, const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells,
+                    const format::Topology& topology, const BakeProgress& progress, BakeResult& result) {
+    const IntegralSettings& in = settings.integral;
+    const eval::Partition partition = cellPartition(cells, result.partition);
+    result.generations.push_back(startGeneration(settings, result));
+    if (progress.generation) {
+        assembleAsset(scene, settings, cells, topology, result);
+        progress.generation(0, result);
+    }
+    NetworkField field(partition, topology, topology.outputTransform, settings.train.demodulate);
+    std::vector<NetworkState> states(result.voxels.size());
+    for (size_t k = 0; k < states.size(); ++k) {
+        field.set(result.voxels[k].voxel, result.voxels[k].params, result.voxels[k].scale);
+        states[k].result = result.voxels[k];
+    }
+    const ScatteredRadiance tail = [&field](const SurfaceInteraction& si) { return field.scattered(si); };
+    SampleSettings round = settings.samples;
+    round.points = in.points > 0 ? in.points : roundPoints(states.size());
+    round.paths = std::max(1u, in.paths);
+    round.firstPoint = settings.samples.points;
+    const TargetEstimator estimator{&tail, std::max(1, in.bounces)};
+    for (uint32_t g = 1; g <= in.generations; ++g) {
+        GenerationStats gs;
+        gs.generation = g;
+        const float f = in.generations > 1 ? float(g - 1) / float(in.generations - 1) : 1.0f;
+        gs.learningRate = exponentialDecay(in.learningRate, in.finalLearningRate / in.learningRate, f);
+        round.generation = g;
+        auto ts = std::chrono::steady_clock::now();
+        std::vector<TrainingSample> fresh;
+        const std::vector<std::vector<VoxelSample>> byCell =
+            roundSamples(scene, tracing, cells, partition, round, estimator, fresh, gs, result);
+        round.firstPoint += round.points;
+        gs.samplingSeconds = since(ts);
+        auto tt = std::chrono::steady_clock::now();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, states.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t k = r.begin(); k != r.end(); ++k) {
+                const std::vector<VoxelSample>& mine = byCell[states[k].result.voxel];
+                if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, in.averageDecay, states[k]);
+            }
+        });
+        for (size_t k = 0; k < states.size(); ++k) {
+            field.set(states[k].result.voxel, states[k].result.params, states[k].result.scale);
+            gs.heldOutRelMse += states[k].result.heldOutRelMse / double(states.size());
+        }
+        gs.trainingSeconds = since(tt);
+        result.timings.sampling += gs.samplingSeconds;
+        result.timings.training += gs.trainingSeconds;
+        result.generations.push_back(gs);
+        if (progress.generation) {
+            for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
+            assembleAsset(scene, settings, cells, topology, result);
+            progress.generation(g, result);
+        }
+    }
+    for (size_t k = 0; k < states.size(); ++k) result.voxels[k] = states[k].result;
+}
+
+}  // namespace
+
+format::Topology bakeTopology(const BakeSettings& settings) {
+    format::Topology topology;
+    topology.hiddenWidths.assign(settings.train.shape.hidden.begin(), settings.train.shape.hidden.end());
+    topology.weightEncoding = settings.encoding;
+    topology.outputTransform =
+        settings.train.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+    return topology;
+}
+
+BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
+    BakeResult result;
+    auto t0 = std::chrono::steady_clock::now();
+    BakeTracing tracing(scene, settings);
+    result.surfaceArea = tracing.pieces.totalArea();
+    result.timings.setup = since(t0);
+
+    auto t1 = std::chrono::steady_clock::now();
+    const std::vector<TrainingSample> samples = generateTrainingSamples(
+        scene, tracing.tracer, tracing.grid, tracing.pieces, settings.samples, result.sampleStats, progress.sampling, &tracing.selector);
+    result.sampleCount = samples.size();
+    result.timings.sampling = since(t1);
+
+    const format::Topology topology = bakeTopology(settings);
+    auto tPartition = std::chrono::steady_clock::now();
+    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, result);
+    result.timings.partition = since(tPartition);
+
+    auto t2 = std::chrono::steady_clock::now();
+    trainCells(settings, cells, progress, result);
+    result.timings.training = since(t2);
+    if (settings.training == TrainingMethod::Integral) integralRounds(scene, settings, tracing, cells, topology, progress, result);
+
+    assembleAsset(scene, settings, cells, topology, result);
+    if (cells.budgeted) {
+        const format::Asset& a = result.asset;
         const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size());
-        if (a.metadata.size() > reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
+        if (a.metadata.size() > cells.reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
             throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
                                    std::to_string(settings.partition.budgetBytes));
     }

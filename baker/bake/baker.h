@@ -104,6 +104,9 @@ struct BakeProgress {
 
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {});
 
+// The networks' shape as the asset records it: hidden widths, weight encoding, output transform (the loss's).
+format::Topology bakeTopology(const BakeSettings& settings);
+
 // Compact JSON written into the asset's META section: only content that is the same for every identical
 // bake (tool, settings, scene hash, per-voxel held-out error), never timings.
 std::string assetMetadata(const Scene& scene, const BakeSettings& settings, const BakeResult& result);

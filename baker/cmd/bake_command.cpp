@@ -141,104 +141,126 @@ int usage(const std::string& what) {
 // boxes stay far below, a sunlit interior baked with its sun reads mean 27.9, worst 162).
 constexpr double kLargeHeldOutMean = 1.0, kLargeHeldOutWorst = 5.0;
 
-int runBake(BakeOptions o, CLI::App* cmd) {
-    bool configEnvironment = false, configLighting = false, configPoints = false, configPaths = false;
-    // A config file supplies defaults; flags given on the command line win.
-    if (!o.config.empty()) {
-        nlohmann::json cfg;
-        try {
-            std::ifstream f(o.config);
-            if (!f) throw std::runtime_error("cannot open file");
-            cfg = nlohmann::json::parse(f);
-            if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
-            std::set<std::string> known;  // every key some line below reads
-            auto take = [&](const char* key, const char* flag, auto& value) {
-                known.insert(key);
-                if (cfg.contains(key) && cmd->count(flag) == 0) value = cfg.at(key).get<std::decay_t<decltype(value)>>();
-            };
-            // The keys read other than through take(), each with its flag: "--no-X" flags are "X": false.
-            for (const char* k : {"budget", "wall_splits", "grid", "hidden", "weight_decay", "nee", "generation_lr", "demodulate",
-                                  "metadata"})
-                known.insert(k);
-            configPoints = cfg.contains("points");
-            if (cfg.contains("budget") && cmd->count("--budget") == 0)
-                o.budget = cfg["budget"].is_number_integer() ? std::to_string(cfg["budget"].get<uint64_t>()) : cfg["budget"].get<std::string>();
-            take("levels", "--levels", o.levels);
-            take("training", "--training", o.training);
-            take("generations", "--generations", o.integral.generations);
-            take("generation_points", "--generation-points", o.integral.points);
-            take("generation_paths", "--generation-paths", o.integral.paths);
-            take("generation_epochs", "--generation-epochs", o.integral.epochs);
-            take("bounces", "--bounces", o.integral.bounces);
-            take("start_epochs", "--start-epochs", o.integral.startEpochs);
-            take("start_restarts", "--start-restarts", o.integral.startRestarts);
-            take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
-            if (cfg.contains("wall_splits") && cmd->count("--no-wall-splits") == 0) o.noWallSplits = !cfg.at("wall_splits").get<bool>();
-            if (cfg.contains("grid") && cfg["grid"].is_number_integer() && cmd->count("--grid") == 0)
-                o.grid = std::to_string(cfg["grid"].get<int>());
-            else
-                take("grid", "--grid", o.grid);
-            take("points", "--points", o.points);
-            take("paths", "--paths", o.paths);
-            take("noisy_paths", "--noisy-paths", o.noisyPaths);
-            configPaths = cfg.contains("paths");
-            take("max_depth", "--max-depth", o.maxDepth);
-            if (cfg.contains("hidden") && cfg["hidden"].is_number_integer() && cmd->count("--hidden") == 0)
-                o.hidden = std::to_string(cfg["hidden"].get<int>());
-            else
-                take("hidden", "--hidden", o.hidden);
-            take("epochs", "--epochs", o.epochs);
-            take("seed", "--seed", o.seed);
-            take("batch_size", "--batch-size", o.batch);
-            take("patience", "--patience", o.patience);
-            take("learning_rate", "--learning-rate", o.learningRate);
-            take("loss", "--loss", o.loss);
-            take("encoding", "--encoding", o.encoding);
-            take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
-            take("blend_band", "--blend-band", o.blendBand);
-            take("environment", "--environment", o.lighting.environment);
-            take("environment_intensity", "--environment-intensity", o.lighting.intensity);
-            take("environment_rotation", "--environment-rotation", o.lighting.rotationDegrees);
-            take("sun", "--sun", o.lighting.sun);
-            take("sun_illuminance", "--sun-illuminance", o.lighting.sunIlluminance);
-            take("sun_angle", "--sun-angle", o.lighting.sunAngle);
-            take("runtime_direct", "--runtime-direct", o.lighting.runtimeDirect);
-            configEnvironment = cfg.contains("environment");
-            for (const char* k : {"environment", "environment_intensity", "environment_rotation", "sun", "sun_illuminance",
-                                  "sun_angle", "runtime_direct"})
-                configLighting = configLighting || cfg.contains(k);
-            if (cfg.contains("weight_decay") && cmd->count("--weight-decay") == 0) {
-                const nlohmann::json& w = cfg["weight_decay"];
-                if (w.is_number()) {
-                    o.weightDecay = joinFloats({w.get<float>()});
-                } else if (w.is_array()) {
-                    std::vector<float> v;
-                    for (const nlohmann::json& x : w) v.push_back(x.get<float>());
-                    o.weightDecay = joinFloats(v);
-                } else {
-                    take("weight_decay", "--weight-decay", o.weightDecay);
-                }
-            }
-            if (cfg.contains("nee") && cmd->count("--nee") == 0) {
-                const std::string mode = cfg.at("nee").get<std::string>();
-                if (!parseNeeMode(mode, o.nee)) throw std::runtime_error("\"nee\": expected power, uniform or learned, not '" + mode + "'");
-            }
-            take("generation_lr", "--generation-lr", o.generationLr);
-            take("average_decay", "--average-decay", o.integral.averageDecay);
-            if (cfg.contains("demodulate") && cmd->count("--no-demodulate") == 0) o.noDemodulate = !cfg.at("demodulate").get<bool>();
-            if (cfg.contains("metadata") && cmd->count("--no-metadata") == 0) o.noMetadata = !cfg.at("metadata").get<bool>();
-            take("max_texture_pixels", "--max-texture-pixels", o.importLimits.maxTexturePixels);
-            take("max_triangles", "--max-triangles", o.importLimits.maxTriangles);
-            if (o.importLimits.maxTexturePixels < 1 || o.importLimits.maxTriangles < 1)
-                throw std::runtime_error("\"max_texture_pixels\" and \"max_triangles\" must be at least 1");
-            for (auto& [key, value] : cfg.items())
-                if (known.count(key) == 0) throw std::runtime_error("unknown key '" + key + "'");
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
-            return kExitBadInput;
-        }
+// What --config itself gave (the rules for defaults that yield to a given value ask).
+struct ConfigGiven {
+    bool environment = false, lighting = false, points = false, paths = false;
+};
+
+// --config's reader: a key's value where no flag set it; `known` gathers every key it reads.
+struct ConfigKeys {
+    const nlohmann::json& cfg;
+    CLI::App* cmd;
+    std::set<std::string> known;
+
+    // Whether the file has `key` and its flag was not given (the flag wins).
+    bool given(const char* key, const char* flag) {
+        known.insert(key);
+        return cfg.contains(key) && cmd->count(flag) == 0;
     }
-    BakeSettings s;
+    template <typename T>
+    void take(const char* key, const char* flag, T& value) {
+        if (given(key, flag)) value = cfg.at(key).get<T>();
+    }
+    // A key that is a number or the flag's string.
+    void takeNumberOrString(const char* key, const char* flag, std::string& value) {
+        if (given(key, flag)) value = cfg[key].is_number_integer() ? std::to_string(cfg[key].get<int64_t>()) : cfg[key].get<std::string>();
+    }
+};
+
+void readPartitionKeys(ConfigKeys& k, BakeOptions& o) {
+    k.takeNumberOrString("budget", "--budget", o.budget);
+    k.take("levels", "--levels", o.levels);
+    k.take("training", "--training", o.training);
+    k.take("generations", "--generations", o.integral.generations);
+    k.take("generation_points", "--generation-points", o.integral.points);
+    k.take("generation_paths", "--generation-paths", o.integral.paths);
+    k.take("generation_epochs", "--generation-epochs", o.integral.epochs);
+    k.take("bounces", "--bounces", o.integral.bounces);
+    k.take("start_epochs", "--start-epochs", o.integral.startEpochs);
+    k.take("start_restarts", "--start-restarts", o.integral.startRestarts);
+    k.take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
+    if (k.given("wall_splits", "--no-wall-splits")) o.noWallSplits = !k.cfg.at("wall_splits").get<bool>();
+    k.takeNumberOrString("grid", "--grid", o.grid);
+}
+
+void readSamplingAndNetworkKeys(ConfigKeys& k, BakeOptions& o) {
+    k.take("points", "--points", o.points);
+    k.take("paths", "--paths", o.paths);
+    k.take("noisy_paths", "--noisy-paths", o.noisyPaths);
+    k.take("max_depth", "--max-depth", o.maxDepth);
+    k.takeNumberOrString("hidden", "--hidden", o.hidden);
+    k.take("epochs", "--epochs", o.epochs);
+    k.take("seed", "--seed", o.seed);
+    k.take("batch_size", "--batch-size", o.batch);
+    k.take("patience", "--patience", o.patience);
+    k.take("learning_rate", "--learning-rate", o.learningRate);
+    k.take("loss", "--loss", o.loss);
+    k.take("encoding", "--encoding", o.encoding);
+    k.take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
+    k.take("blend_band", "--blend-band", o.blendBand);
+}
+
+void readLightingKeys(ConfigKeys& k, BakeOptions& o) {
+    k.take("environment", "--environment", o.lighting.environment);
+    k.take("environment_intensity", "--environment-intensity", o.lighting.intensity);
+    k.take("environment_rotation", "--environment-rotation", o.lighting.rotationDegrees);
+    k.take("sun", "--sun", o.lighting.sun);
+    k.take("sun_illuminance", "--sun-illuminance", o.lighting.sunIlluminance);
+    k.take("sun_angle", "--sun-angle", o.lighting.sunAngle);
+    k.take("runtime_direct", "--runtime-direct", o.lighting.runtimeDirect);
+}
+
+void readTrainingKeys(ConfigKeys& k, BakeOptions& o) {
+    if (k.given("weight_decay", "--weight-decay")) {
+        const nlohmann::json& w = k.cfg["weight_decay"];
+        std::vector<float> v;
+        if (w.is_number()) v.push_back(w.get<float>());
+        for (const nlohmann::json& x : w.is_array() ? w : nlohmann::json::array()) v.push_back(x.get<float>());
+        o.weightDecay = w.is_number() || w.is_array() ? joinFloats(v) : w.get<std::string>();
+    }
+    if (k.given("nee", "--nee")) {
+        const std::string mode = k.cfg.at("nee").get<std::string>();
+        if (!parseNeeMode(mode, o.nee)) throw std::runtime_error("\"nee\": expected power, uniform or learned, not '" + mode + "'");
+    }
+    k.take("generation_lr", "--generation-lr", o.generationLr);
+    k.take("average_decay", "--average-decay", o.integral.averageDecay);
+    if (k.given("demodulate", "--no-demodulate")) o.noDemodulate = !k.cfg.at("demodulate").get<bool>();
+    if (k.given("metadata", "--no-metadata")) o.noMetadata = !k.cfg.at("metadata").get<bool>();
+    k.take("max_texture_pixels", "--max-texture-pixels", o.importLimits.maxTexturePixels);
+    k.take("max_triangles", "--max-triangles", o.importLimits.maxTriangles);
+    if (o.importLimits.maxTexturePixels < 1 || o.importLimits.maxTriangles < 1)
+        throw std::runtime_error("\"max_texture_pixels\" and \"max_triangles\" must be at least 1");
+}
+
+// A config file supplies defaults; flags given on the command line win. Unknown keys are refused.
+int readConfig(BakeOptions& o, CLI::App* cmd, ConfigGiven& given) {
+    try {
+        std::ifstream f(o.config);
+        if (!f) throw std::runtime_error("cannot open file");
+        const nlohmann::json cfg = nlohmann::json::parse(f);
+        if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
+        ConfigKeys keys{cfg, cmd, {}};
+        readPartitionKeys(keys, o);
+        readSamplingAndNetworkKeys(keys, o);
+        readLightingKeys(keys, o);
+        readTrainingKeys(keys, o);
+        given.points = cfg.contains("points");
+        given.paths = cfg.contains("paths");
+        given.environment = cfg.contains("environment");
+        for (const char* k : {"environment", "environment_intensity", "environment_rotation", "sun", "sun_illuminance", "sun_angle",
+                              "runtime_direct"})
+            given.lighting = given.lighting || cfg.contains(k);
+        for (auto& [key, value] : cfg.items())
+            if (keys.known.count(key) == 0) throw std::runtime_error("unknown key '" + key + "'");
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
+        return kExitBadInput;
+    }
+    return kExitOk;
+}
+
+// The grid, the networks and their training.
+int networkSettings(const BakeOptions& o, BakeSettings& s) {
     if (!parseGrid(o.grid, s.grid)) return usage("--grid " + o.grid + ": expected N or NxMxK with 1..256 voxels per axis");
     if (!parseHidden(o.hidden, s.train.shape.hidden))
         return usage("--hidden " + o.hidden + ": expected widths 1..256, comma-separated, at most 8 layers");
@@ -257,13 +279,15 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.blendBand = o.blendBand;
     if (!parseFloats(o.weightDecay, s.train.weightDecays))
         return usage("--weight-decay " + o.weightDecay + ": expected 1 to 8 comma-separated values >= 0");
+    return kExitOk;
+}
+
+// The budget and the adaptive partition.
+int partitionSettings(const BakeOptions& o, BakeSettings& s) {
     if (!o.budget.empty() && !parseBytes(o.budget, s.partition.budgetBytes))
         return usage("--budget " + o.budget + ": expected a size in bytes, optionally with K or M (1024-based), e.g. 64K");
     if (s.partition.budgetBytes > 0) {  // refused before any work when not even one network fits
-        format::Topology t;
-        t.hiddenWidths.assign(s.train.shape.hidden.begin(), s.train.shape.hidden.end());
-        t.weightEncoding = s.encoding;
-        const uint64_t smallest = format::encodedSize(t, 1, 1, 0);
+        const uint64_t smallest = format::encodedSize(bakeTopology(s), 1, 1, 0);
         if (s.partition.budgetBytes < smallest)
             return usage("--budget " + o.budget + ": below the smallest asset of one network (" + std::to_string(smallest) + " bytes)");
     }
@@ -271,16 +295,11 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     if (o.minLeafSamples < 16) return usage("--min-leaf-samples: expected at least 16");
     s.partition.levels = o.levels;
     s.partition.minLeafSamples = o.minLeafSamples;
-    // With a budget and no --points: enough points for the networks it can pay for (1,500 each; at most 4 M,
-    // so that a 1 MB bake stays in minutes). Fewer starve the networks: zdm2 at 47 KB went from relMSE 0.050
-    // at 400 per network to 0.012 at 3,500 (docs/results.md).
-    if (s.partition.budgetBytes > 0 && cmd->count("--points") == 0 && !configPoints) {
-        format::Topology t;
-        t.hiddenWidths.assign(s.train.shape.hidden.begin(), s.train.shape.hidden.end());
-        t.weightEncoding = s.encoding;
-        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
-        o.points = uint32_t(std::clamp<uint64_t>(networks * 1500, o.points, 4000000));
-    }
+    return kExitOk;
+}
+
+// The training method and the rounds of training within the integral equation.
+int integralSettings(BakeOptions& o, BakeSettings& s) {
     if (!parseTrainingMethod(o.training, s.training))
         return usage("--training " + o.training + ": expected monte-carlo or integral");
     if (o.integral.paths < 1 || o.integral.epochs < 1 || o.integral.startEpochs < 1 || o.integral.startRestarts < 0 || o.integral.startRestarts > 64 || o.integral.bounces < 1 || o.integral.bounces > 8)
@@ -295,22 +314,39 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     if (!(o.integral.averageDecay >= 0.0f && o.integral.averageDecay < 1.0f))
         return usage("--average-decay must be in [0, 1)");
     s.integral = o.integral;
-    // Training within the integral equation starts from a few Monte Carlo paths per point unless told.
-    if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !(configPaths)) o.paths = kIntegralStartPaths;
-    // (Its paths are of every length unless told, as every bake's are since issue 38: docs/results.md: a start
-    // cut at 6 segments left the rounds light to restore, 3.8x the error after one round on a box of albedo 0.95.)
-    // ... and from 1,500 points per grid cell (at least 40,000) unless told (docs/results.md: 750 left the rounds
-    // a start they needed many of to undo).
-    // A grid finer than the default's 3 x 3 x 3 and no --points: the default's density, 160,000 points per 27
-    // cells (at most 4 M). At a fixed count each network of --grid 4 or 6 gets 42% or 13% of the samples and
-    // makes a block of its own noise: the doorway's dark wall at --grid 4 went from 7.3% to 5.7% rms
-    // (docs/results.md).
-    if (s.training == TrainingMethod::MonteCarlo && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints) {
+    return kExitOk;
+}
+
+// The points and paths where neither a flag nor the config file gave them.
+void defaultPointsAndPaths(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, const BakeSettings& s) {
+    const bool pointsGiven = cmd->count("--points") > 0 || given.points;
+    // With a budget: enough points for the networks it can pay for (1,500 each; at most 4 M, so that a 1 MB
+    // bake stays in minutes). Fewer starve the networks (zdm2 at 47 KB: docs/results.md).
+    if (s.partition.budgetBytes > 0 && !pointsGiven) {
+        const format::Topology t = bakeTopology(s);
+        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
+        o.points = uint32_t(std::clamp<uint64_t>(networks * 1500, o.points, 4000000));
+    }
+    // Training within the integral equation starts from a few Monte Carlo paths per point (of every length,
+    // as every bake's are), from 1,500 points per grid cell (at least 40,000): docs/training.md.
+    if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !given.paths) o.paths = kIntegralStartPaths;
+    // A grid finer than the default's 3 x 3 x 3: the default's density, 160,000 points per 27 cells (at most
+    // 4 M). At a fixed count each network of --grid 4 or 6 gets 42% or 13% of the samples and makes a block of
+    // its own noise (docs/results.md).
+    if (s.training == TrainingMethod::MonteCarlo && s.partition.budgetBytes == 0 && !pointsGiven) {
         const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
         o.points = uint32_t(std::clamp<uint64_t>(uint64_t(o.points) * cells / 27, o.points, 4000000));
     }
-    if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && cmd->count("--points") == 0 && !configPoints)
+    if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && !pointsGiven)
         o.points = uint32_t(std::clamp<uint64_t>(1500ull * s.grid.x * s.grid.y * s.grid.z, 40000, 4000000));
+}
+
+// The bake's settings from the options (usage errors refused before any work).
+int settingsFromOptions(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, BakeSettings& s) {
+    if (int code = networkSettings(o, s)) return code;
+    if (int code = partitionSettings(o, s)) return code;
+    if (int code = integralSettings(o, s)) return code;
+    defaultPointsAndPaths(o, cmd, given, s);
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.samples.extraPathsFactor = o.noisyPaths;
@@ -326,48 +362,47 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     s.metadata = !o.noMetadata;
     s.train.demodulate = !o.noDemodulate;
     s.walls.enabled = !o.noWallSplits;
+    return kExitOk;
+}
 
-    {
-        std::vector<std::string> outputs = {o.output};
-        if (!o.stats.empty()) outputs.push_back(o.stats);
-        if (!o.saveGenerations.empty()) outputs.push_back(o.saveGenerations + "-g0.nrad");
-        if (int code = checkOutputsForCommand("bake", outputs)) return code;
+// Says which lights the engine draws and which the asset holds whole.
+void reportMixedLighting(const Scene& scene) {
+    std::string drawn;
+    size_t baked = 0;
+    for (const PunctualLight& l : scene.lights) {
+        if (l.runtimeDirect)
+            drawn += (drawn.empty() ? "" : ", ") + (!l.name.empty() ? "'" + l.name + "'"
+                                                    : l.type == PunctualLight::Type::Directional ? std::string("a directional light")
+                                                                                                  : std::string("a punctual light"));
+        else
+            ++baked;
     }
-    ThreadScope threads(o.threads);
-    auto t0 = std::chrono::steady_clock::now();
-    Scene scene;
+    if (!drawn.empty())
+        std::fprintf(stderr, "lighting: mixed: the engine draws the direct light of %s (its shadows sharp), the asset holds "
+                             "their indirect light and everything else%s; --runtime-direct none bakes it all\n",
+                     drawn.c_str(), baked ? (" (" + std::to_string(baked) + " soft light(s) baked whole)").c_str() : "");
+    else if (baked)
+        std::fprintf(stderr, "lighting: %zu punctual light(s) baked whole, direct light included (soft, or --runtime-direct "
+                             "none): the asset smears sharp direct light\n", baked);
+}
+
+// The scene, lit as the flags and the config file say (into s.lightingJson).
+int loadLitScene(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, Scene& scene, BakeSettings& s) {
     if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene, o.importLimits)) return code;
-    std::string lightingJson;
-    // Mixed lighting by default: the engine draws the direct light of sharp punctual lights and a sharp sun, the
-    // asset holds the rest. Baked, a sun's direct light is a smear: on a sunlit level relMSE 0.61 against 0.068,
-    // on a sunlit interior 5.19 against 0.091 (docs/lights.md, docs/results.md).
+    // Mixed lighting by default: the engine draws the direct light of sharp punctual lights and a sharp sun,
+    // the asset holds the rest. Baked, a sun's direct light is a smear (docs/lights.md, docs/results.md).
     if (o.lighting.runtimeDirect.empty()) o.lighting.runtimeDirect = "auto";
-    if (int code = applyLightingForCommand("bake", o.lighting, lightingFlagsGiven(cmd) || configLighting,
-                                           cmd->count("--environment") > 0 || configEnvironment, o.quiet, scene, {}, &lightingJson))
+    if (int code = applyLightingForCommand("bake", o.lighting, lightingFlagsGiven(cmd) || given.lighting,
+                                           cmd->count("--environment") > 0 || given.environment, o.quiet, scene, {}, &s.lightingJson))
         return code;
-    if (!o.quiet) {
-        std::string drawn;
-        size_t baked = 0;
-        for (const PunctualLight& l : scene.lights) {
-            if (l.runtimeDirect)
-                drawn += (drawn.empty() ? "" : ", ") + (!l.name.empty() ? "'" + l.name + "'"
-                                                        : l.type == PunctualLight::Type::Directional ? std::string("a directional light")
-                                                                                                      : std::string("a punctual light"));
-            else
-                ++baked;
-        }
-        if (!drawn.empty())
-            std::fprintf(stderr, "lighting: mixed: the engine draws the direct light of %s (its shadows sharp), the asset holds "
-                                 "their indirect light and everything else%s; --runtime-direct none bakes it all\n",
-                         drawn.c_str(), baked ? (" (" + std::to_string(baked) + " soft light(s) baked whole)").c_str() : "");
-        else if (baked)
-            std::fprintf(stderr, "lighting: %zu punctual light(s) baked whole, direct light included (soft, or --runtime-direct "
-                                 "none): the asset smears sharp direct light\n", baked);
-    }
-    s.lightingJson = lightingJson;
-    double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!o.quiet) reportMixedLighting(scene);
+    return kExitOk;
+}
+
+// Bakes, with progress on stderr, and writes the asset (its bytes into `bytes`).
+int bakeAndWrite(const BakeOptions& o, const Scene& scene, const BakeSettings& s, BakeResult& r, std::vector<uint8_t>& bytes,
+                 double& writeSeconds) {
     ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
-    BakeResult r;
     try {
         BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {}};
         if (!o.saveGenerations.empty())
@@ -382,62 +417,83 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         std::fprintf(stderr, "nrad bake: %s\n", e.what());
         return kExitUsage;
     }
-
-    auto t3 = std::chrono::steady_clock::now();
-    std::vector<uint8_t> bytes = format::encode(r.asset);
+    auto t = std::chrono::steady_clock::now();
+    bytes = format::encode(r.asset);
     try {
         writeBytesAtomically(o.output, bytes);
     } catch (const IoError& e) {
         std::fprintf(stderr, "nrad bake: %s\n", e.what());
         return kExitIo;
     }
-    double writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t3).count();
+    writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    return kExitOk;
+}
 
-    double meanErr = 0.0, worstErr = 0.0;
+// The networks' held-out errors, summed up.
+struct HeldOutSummary {
+    double mean = 0.0, worst = 0.0;
     uint32_t worstVoxel = 0;
     size_t retrained = 0, fallbacks = 0;
+};
+
+HeldOutSummary heldOutSummary(const BakeResult& r) {
+    HeldOutSummary h;
     for (const VoxelTrainResult& v : r.voxels) {
-        meanErr += v.heldOutRelMse;
-        if (v.heldOutRelMse >= worstErr) {
-            worstErr = v.heldOutRelMse;
-            worstVoxel = v.voxel;
+        h.mean += v.heldOutRelMse;
+        if (v.heldOutRelMse >= h.worst) {
+            h.worst = v.heldOutRelMse;
+            h.worstVoxel = v.voxel;
         }
-        retrained += v.attempts > 1 ? 1 : 0;
-        fallbacks += v.fallback ? 1 : 0;
+        h.retrained += v.attempts > 1 ? 1 : 0;
+        h.fallbacks += v.fallback ? 1 : 0;
     }
-    if (!r.voxels.empty()) meanErr /= double(r.voxels.size());
+    if (!r.voxels.empty()) h.mean /= double(r.voxels.size());
+    return h;
+}
+
+// The timings of a bake run.
+struct BakeTimes {
+    double load = 0.0, write = 0.0;
+};
+
+void printBakeLine(const BakeOptions& o, const BakeSettings& s, const BakeResult& r, const HeldOutSummary& h, size_t bytes,
+                   const BakeTimes& times) {
     for (const VoxelTrainResult& v : r.voxels)
         for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
     std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu hidden, %llu dropped, %llu "
                 "non-finite paths, %llu noisy with %ux the paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
                 "time: load %.2f s, setup %.2f s, sampling %.2f s, partition %.2f s, training %.2f s, writing %.3f s\n",
-                o.scene.c_str(), o.output.c_str(), bytes.size(), r.voxels.size(), unsigned(r.asset.cellCount()),
+                o.scene.c_str(), o.output.c_str(), bytes, r.voxels.size(), unsigned(r.asset.cellCount()),
                 r.asset.tree.empty() ? "voxels" : "leaves", r.sampleCount,
                 (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.hiddenSamples,
                 (unsigned long long)r.sampleStats.droppedSamples, (unsigned long long)r.sampleStats.nonFinitePaths,
-                (unsigned long long)r.sampleStats.noisyPoints, s.samples.extraPathsFactor, meanErr, worstErr, worstVoxel, retrained, fallbacks,
-                loadSeconds, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, writeSeconds);
+                (unsigned long long)r.sampleStats.noisyPoints, s.samples.extraPathsFactor, h.mean, h.worst, h.worstVoxel, h.retrained,
+                h.fallbacks, times.load, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, times.write);
+}
 
-    if (meanErr > kLargeHeldOutMean || worstErr > kLargeHeldOutWorst) {
-        // Networks this small smear sharp light; say what that likely is and what to do about it, rather than
-        // leave two large numbers in a long line.
-        size_t baked = 0;
-        bool sunBaked = false;
-        for (const PunctualLight& l : scene.lights)
-            if (!l.runtimeDirect) {
-                ++baked;
-                sunBaked = sunBaked || l.type == PunctualLight::Type::Directional;
-            }
-        const std::string cause = sunBaked ? "the sun's sharp direct light, baked into the asset"
-                                  : baked  ? std::to_string(baked) + " punctual light(s) whose sharp direct light is baked into the asset"
-                                           : "small or bright emitters whose sharp direct light is baked into the asset";
-        std::fprintf(stderr, "warning: large held-out error (relMSE mean %.3g, worst %.3g in %s %u; above %g or %g the asset "
-                             "visibly smears light): likely %s. Remedies: %s a finer partition (--budget larger, or --grid)\n",
-                     meanErr, worstErr, r.asset.tree.empty() ? "voxel" : "leaf", worstVoxel, kLargeHeldOutMean, kLargeHeldOutWorst,
-                     cause.c_str(), baked ? "--runtime-direct sun|all|NAME (the engine draws their direct light, the asset keeps the rest);"
-                                          : "");
-    }
+// Networks this small smear sharp light: where the held-out error is large, says what that likely is and
+// what to do about it, rather than leave two large numbers in a long line.
+void warnLargeHeldOut(const Scene& scene, const BakeResult& r, const HeldOutSummary& h) {
+    if (!(h.mean > kLargeHeldOutMean || h.worst > kLargeHeldOutWorst)) return;
+    size_t baked = 0;
+    bool sunBaked = false;
+    for (const PunctualLight& l : scene.lights)
+        if (!l.runtimeDirect) {
+            ++baked;
+            sunBaked = sunBaked || l.type == PunctualLight::Type::Directional;
+        }
+    const std::string cause = sunBaked ? "the sun's sharp direct light, baked into the asset"
+                              : baked  ? std::to_string(baked) + " punctual light(s) whose sharp direct light is baked into the asset"
+                                       : "small or bright emitters whose sharp direct light is baked into the asset";
+    std::fprintf(stderr, "warning: large held-out error (relMSE mean %.3g, worst %.3g in %s %u; above %g or %g the asset "
+                         "visibly smears light): likely %s. Remedies: %s a finer partition (--budget larger, or --grid)\n",
+                 h.mean, h.worst, r.asset.tree.empty() ? "voxel" : "leaf", h.worstVoxel, kLargeHeldOutMean, kLargeHeldOutWorst,
+                 cause.c_str(), baked ? "--runtime-direct sun|all|NAME (the engine draws their direct light, the asset keeps the rest);"
+                                      : "");
+}
 
+// The rounds of training within the integral equation and the partition, a line each.
+void printRoundsAndPartition(const BakeSettings& s, const BakeResult& r, size_t bytes) {
     if (!r.generations.empty()) {
         const GenerationStats& last = r.generations.back();
         std::printf("training within the integral equation: a Monte Carlo start (%zu samples, %.2f s) and %zu rounds of %zu "
@@ -452,7 +508,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
         std::printf("partition: kd-tree of %u leaves (%u with surface, depth up to %u) on a %ux%ux%u lattice, %zu nodes; "
                     "%llu of %llu budget bytes; residual %.4g of %.4g left\n",
                     ap.leafCount, ap.networks, deepest, r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2],
-                    ap.tree.size(), (unsigned long long)bytes.size(), (unsigned long long)s.partition.budgetBytes, ap.residual,
+                    ap.tree.size(), (unsigned long long)bytes, (unsigned long long)s.partition.budgetBytes, ap.residual,
                     ap.rootResidual);
     } else if (ap.leafCount > 0) {
         const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
@@ -461,78 +517,122 @@ int runBake(BakeOptions o, CLI::App* cmd) {
                     s.grid.x, s.grid.y, s.grid.z, (unsigned long long)(ap.leafCount - cells), ap.leafCount, ap.networks,
                     r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]);
     }
+}
 
-    if (!o.stats.empty()) {
-        nlohmann::json j;
-        if (s.partition.budgetBytes > 0) {
-            nlohmann::json leaves = nlohmann::json::array();
-            for (size_t i = 0; i < ap.leaves.size(); ++i) {
-                const PartitionLeafInfo& l = ap.leaves[i];
-                leaves.push_back({{"leaf", i}, {"depth", l.depth}, {"lo", {l.box.lo[0], l.box.lo[1], l.box.lo[2]}},
-                                  {"hi", {l.box.hi[0], l.box.hi[1], l.box.hi[2]}}, {"samples", l.samples},
-                                  {"residual", l.residual}});
-            }
-            j["partition"] = {{"kind", "kd-tree"},
-                              {"budget_bytes", s.partition.budgetBytes},
-                              {"lattice", {r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]}},
-                              {"nodes", ap.tree.size()},
-                              {"leaves", ap.leafCount},
-                              {"networks", ap.networks},
-                              {"splits_skipped_for_budget", ap.splitsSkippedForBudget},
-                              {"root_residual", ap.rootResidual},
-                              {"residual", ap.residual},
-                              {"cells", leaves}};
-        }
-        nlohmann::json rounds = nlohmann::json::array();
-        double elapsed = loadSeconds + r.timings.setup + r.timings.partition;
-        for (const GenerationStats& g : r.generations) {
-            elapsed += g.samplingSeconds + g.trainingSeconds;
-            rounds.push_back({{"generation", g.generation}, {"samples", g.samples}, {"rays", g.rays},
-                              {"sampling_seconds", g.samplingSeconds}, {"training_seconds", g.trainingSeconds},
-                              {"elapsed_seconds", elapsed}, {"learning_rate", g.learningRate},
-                              {"held_out_relmse_against_targets", g.heldOutRelMse}});
-        }
-        j["training"] = {{"method", trainingMethodName(s.training)}, {"generations", rounds}};
-        j["scene"] = o.scene;
-        j["asset"] = o.output;
-        j["asset_bytes"] = bytes.size();
-        j["grid"] = {s.grid.x, s.grid.y, s.grid.z};
-        j["occupied_voxels"] = r.voxels.size();
-        j["samples"] = r.sampleCount;
-        j["floor_samples"] = r.sampleStats.floorPoints;
-        j["dropped_samples"] = r.sampleStats.droppedSamples;
-        j["hidden_samples"] = r.sampleStats.hiddenSamples;
-        j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
-        j["noisy_samples"] = r.sampleStats.noisyPoints;
-        j["nee"] = {{"mode", neeModeName(o.nee)},
-                    {"warmup_paths", r.sampleStats.neeWarmupPaths},
-                    {"training_steps", r.sampleStats.neeTrainingSteps},
-                    {"warmup_seconds", r.sampleStats.neeWarmupSeconds}};
-        j["rays"] = r.sampleStats.rays.total();
-        j["surface_area"] = r.surfaceArea;
-        j["held_out_relmse"] = {{"mean", meanErr}, {"worst", worstErr}, {"worst_voxel", worstVoxel}};
-        j["seconds"] = {{"load", loadSeconds}, {"setup", r.timings.setup}, {"sampling", r.timings.sampling},
-                        {"partition", r.timings.partition}, {"training", r.timings.training}, {"writing", writeSeconds}};
-        j["settings"] = nlohmann::json::parse(assetMetadata(scene, s, r))["bake"];
-        nlohmann::json voxels = nlohmann::json::array();
-        for (const VoxelTrainResult& v : r.voxels) {
-            nlohmann::json curve = nlohmann::json::array();
-            for (const TrainCurvePoint& c : v.curve) curve.push_back({c.epoch, c.seconds, c.heldOutRelMse});
-            voxels.push_back({{"voxel", v.voxel}, {"train_samples", v.trainCount}, {"held_out_samples", v.heldOutCount},
-                              {"held_out_relmse", v.heldOutRelMse}, {"train_relmse", v.trainRelMse}, {"scale", v.scale},
-                              {"epochs", v.epochs}, {"attempts", v.attempts}, {"fallback", v.fallback},
-                              {"weight_decay", v.weightDecay},
-                              {"events", v.events}, {"seconds", v.seconds},
-                              {"curve_epoch_seconds_relmse", curve}});
-        }
-        j["voxels"] = voxels;
-        try {
-            writeTextAtomically(o.stats, j.dump(1) + "\n");
-        } catch (const IoError& e) {
-            std::fprintf(stderr, "nrad bake: %s\n", e.what());
-            return kExitIo;
-        }
+// --stats: the kd-tree and its leaves.
+nlohmann::json partitionStats(const BakeSettings& s, const BakeResult& r) {
+    const AdaptivePartition& ap = r.partition;
+    nlohmann::json leaves = nlohmann::json::array();
+    for (size_t i = 0; i < ap.leaves.size(); ++i) {
+        const PartitionLeafInfo& l = ap.leaves[i];
+        leaves.push_back({{"leaf", i}, {"depth", l.depth}, {"lo", {l.box.lo[0], l.box.lo[1], l.box.lo[2]}},
+                          {"hi", {l.box.hi[0], l.box.hi[1], l.box.hi[2]}}, {"samples", l.samples},
+                          {"residual", l.residual}});
     }
+    return {{"kind", "kd-tree"},
+            {"budget_bytes", s.partition.budgetBytes},
+            {"lattice", {r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]}},
+            {"nodes", ap.tree.size()},
+            {"leaves", ap.leafCount},
+            {"networks", ap.networks},
+            {"splits_skipped_for_budget", ap.splitsSkippedForBudget},
+            {"root_residual", ap.rootResidual},
+            {"residual", ap.residual},
+            {"cells", leaves}};
+}
+
+// --stats: the training method and its rounds, with the time elapsed at the end of each.
+nlohmann::json trainingStats(const BakeSettings& s, const BakeResult& r, const BakeTimes& times) {
+    nlohmann::json rounds = nlohmann::json::array();
+    double elapsed = times.load + r.timings.setup + r.timings.partition;
+    for (const GenerationStats& g : r.generations) {
+        elapsed += g.samplingSeconds + g.trainingSeconds;
+        rounds.push_back({{"generation", g.generation}, {"samples", g.samples}, {"rays", g.rays},
+                          {"sampling_seconds", g.samplingSeconds}, {"training_seconds", g.trainingSeconds},
+                          {"elapsed_seconds", elapsed}, {"learning_rate", g.learningRate},
+                          {"held_out_relmse_against_targets", g.heldOutRelMse}});
+    }
+    return {{"method", trainingMethodName(s.training)}, {"generations", rounds}};
+}
+
+// --stats: every network's training.
+nlohmann::json voxelStats(const BakeResult& r) {
+    nlohmann::json voxels = nlohmann::json::array();
+    for (const VoxelTrainResult& v : r.voxels) {
+        nlohmann::json curve = nlohmann::json::array();
+        for (const TrainCurvePoint& c : v.curve) curve.push_back({c.epoch, c.seconds, c.heldOutRelMse});
+        voxels.push_back({{"voxel", v.voxel}, {"train_samples", v.trainCount}, {"held_out_samples", v.heldOutCount},
+                          {"held_out_relmse", v.heldOutRelMse}, {"train_relmse", v.trainRelMse}, {"scale", v.scale},
+                          {"epochs", v.epochs}, {"attempts", v.attempts}, {"fallback", v.fallback},
+                          {"weight_decay", v.weightDecay},
+                          {"events", v.events}, {"seconds", v.seconds},
+                          {"curve_epoch_seconds_relmse", curve}});
+    }
+    return voxels;
+}
+
+int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& scene, const BakeResult& r, const HeldOutSummary& h,
+                   size_t bytes, const BakeTimes& times) {
+    nlohmann::json j;
+    if (s.partition.budgetBytes > 0) j["partition"] = partitionStats(s, r);
+    j["training"] = trainingStats(s, r, times);
+    j["scene"] = o.scene;
+    j["asset"] = o.output;
+    j["asset_bytes"] = bytes;
+    j["grid"] = {s.grid.x, s.grid.y, s.grid.z};
+    j["occupied_voxels"] = r.voxels.size();
+    j["samples"] = r.sampleCount;
+    j["floor_samples"] = r.sampleStats.floorPoints;
+    j["dropped_samples"] = r.sampleStats.droppedSamples;
+    j["hidden_samples"] = r.sampleStats.hiddenSamples;
+    j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
+    j["noisy_samples"] = r.sampleStats.noisyPoints;
+    j["nee"] = {{"mode", neeModeName(o.nee)},
+                {"warmup_paths", r.sampleStats.neeWarmupPaths},
+                {"training_steps", r.sampleStats.neeTrainingSteps},
+                {"warmup_seconds", r.sampleStats.neeWarmupSeconds}};
+    j["rays"] = r.sampleStats.rays.total();
+    j["surface_area"] = r.surfaceArea;
+    j["held_out_relmse"] = {{"mean", h.mean}, {"worst", h.worst}, {"worst_voxel", h.worstVoxel}};
+    j["seconds"] = {{"load", times.load}, {"setup", r.timings.setup}, {"sampling", r.timings.sampling},
+                    {"partition", r.timings.partition}, {"training", r.timings.training}, {"writing", times.write}};
+    j["settings"] = nlohmann::json::parse(assetMetadata(scene, s, r))["bake"];
+    j["voxels"] = voxelStats(r);
+    try {
+        writeTextAtomically(o.stats, j.dump(1) + "\n");
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitIo;
+    }
+    return kExitOk;
+}
+
+int runBake(BakeOptions o, CLI::App* cmd) {
+    ConfigGiven given;
+    if (!o.config.empty())
+        if (int code = readConfig(o, cmd, given)) return code;
+    BakeSettings s;
+    if (int code = settingsFromOptions(o, cmd, given, s)) return code;
+    {
+        std::vector<std::string> outputs = {o.output};
+        if (!o.stats.empty()) outputs.push_back(o.stats);
+        if (!o.saveGenerations.empty()) outputs.push_back(o.saveGenerations + "-g0.nrad");
+        if (int code = checkOutputsForCommand("bake", outputs)) return code;
+    }
+    ThreadScope threads(o.threads);
+    BakeTimes times;
+    auto t0 = std::chrono::steady_clock::now();
+    Scene scene;
+    if (int code = loadLitScene(o, cmd, given, scene, s)) return code;
+    times.load = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    BakeResult r;
+    std::vector<uint8_t> bytes;
+    if (int code = bakeAndWrite(o, scene, s, r, bytes, times.write)) return code;
+    const HeldOutSummary h = heldOutSummary(r);
+    printBakeLine(o, s, r, h, bytes.size(), times);
+    warnLargeHeldOut(scene, r, h);
+    printRoundsAndPartition(s, r, bytes.size());
+    if (!o.stats.empty()) return writeBakeStats(o, s, scene, r, h, bytes.size(), times);
     return kExitOk;
 }
 
