@@ -378,8 +378,8 @@ struct GBufferTile {
 constexpr size_t kGBufferScratchBytes = sizeof(GBufferTile) + 64;
 
 Scratch carveScratch(void* memory) {
-    auto at = reinterpret_cast<uintptr_t>(memory);
-    at = (at + 63) & ~uintptr_t(63);
+    const auto base = reinterpret_cast<uintptr_t>(memory);
+    auto at = (base + 63) & ~uintptr_t(63);
     auto take = [&](size_t bytes) {
         void* p = reinterpret_cast<void*>(at);
         at += bytes;
@@ -396,6 +396,7 @@ Scratch carveScratch(void* memory) {
     s.local = static_cast<float*>(take(kTileEntries * 12));
     s.start = static_cast<uint32_t*>(take((kTileEntries + 1) * 4));
     s.entries = 0;
+    NRAD_CHECK(at - base <= kScratchBytes);  // the arrays fit the block nradScratchBytes asks callers for
     return s;
 }
 

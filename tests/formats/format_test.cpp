@@ -197,7 +197,7 @@ TEST(Format, VoxelRuleOnBorders) {
 
 TEST(Format, DecoderRejectsInvalidContent) {
     Asset out;
-    auto reencode = [](Asset a) { return encode(a); };
+    auto reencode = [](Asset a) { return encodeUnchecked(a); };  // invalid on purpose: encode() would stop
     Asset a = tinyAsset();
     a.voxels[0].index = 2;  // outside a grid of 2 voxels
     std::vector<uint8_t> b = reencode(a);
@@ -220,6 +220,27 @@ TEST(Format, DecoderRejectsInvalidContent) {
     EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTopology);
 }
 
+
+// A writer that breaks encode()'s preconditions is a bug: it stops before writing, naming the condition.
+TEST(FormatDeathTest, EncodeStopsAtBrokenPreconditions) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    Asset a = tinyAsset();
+    ASSERT_FALSE(encode(a).empty());
+    a.voxels[0].index = 2;  // outside a grid of 2 voxels
+    EXPECT_DEATH(encode(a), "internal check failed: a.voxels\\[i\\].index < cells");
+    a = tinyAsset(WeightEncoding::Float32);
+    a.weights[3] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_DEATH(encode(a), "internal check failed: std::isfinite\\(w\\)");
+    a = tinyAsset();
+    a.weights.pop_back();
+    EXPECT_DEATH(encode(a), "internal check failed: a.weights.size\\(\\) == ");
+    a = tinyAsset();
+    a.voxels[0].scale = 0.0f;
+    EXPECT_DEATH(encode(a), "a.voxels\\[i\\].scale > 0.0f");
+    a = tinyAsset();
+    a.header.flags |= kFlagTree;  // and no tree
+    EXPECT_DEATH(encode(a), "validateTree");
+}
 
 // Format 2.1: kFlagBlended and the band in GRID's last four bytes; written as 2.1 only when blended, so
 // 2.0 readers still load everything else (and reject the flag rather than draw seams).

@@ -171,7 +171,7 @@ std::vector<uint8_t> treeAssetBytes(const std::vector<TreeNode>& tree, uint32_t 
     a.tree = tree;
     for (uint32_t i = 0; i < leaves; i += 2) a.voxels.push_back({i, 1.0f});
     a.weights.assign(a.voxels.size() * a.topology.parameterCount(), 0.125f);
-    return encode(a);
+    return encodeUnchecked(a);  // the trees may be invalid on purpose
 }
 
 TEST(Tree, RoundTripsAsVersionTwoPointTwo) {
@@ -191,6 +191,19 @@ TEST(Tree, RoundTripsAsVersionTwoPointTwo) {
         EXPECT_EQ(out.tree[i].child, tree[i].child);
     }
     EXPECT_EQ(out.cellCount(), leaves);
+}
+
+// A partition is built from a valid tree with its true leaf count (the decoder validates an asset's; the
+// baker builds its own valid): anything else is a bug, stopped where it would have read the wrong leaves.
+TEST(TreeDeathTest, PartitionStopsAtAnInvalidTreeOrLeafCount) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const Grid g = latticeGrid(4, 4, 4);
+    const std::vector<TreeNode> good = uniformTree(g.dims);  // 64 leaves
+    EXPECT_EQ(eval::Partition(g, 0.25f, good, 64).cells, 64u);
+    EXPECT_DEATH(eval::Partition(g, 0.25f, good, 63), "internal check failed: valid && leaves == leafCount");
+    std::vector<TreeNode> cycle = good;
+    cycle[0].child = 0;
+    EXPECT_DEATH(eval::Partition(g, 0.25f, cycle, 64), "internal check failed: valid");
 }
 
 TEST(Tree, DecoderRefusesInvalidTrees) {
@@ -245,7 +258,7 @@ TEST(Tree, DecoderRefusesInvalidTrees) {
         a.topology.hiddenWidths = {2};
         a.voxels = {{0, 1.0f}};
         a.weights.assign(a.topology.parameterCount(), 0.125f);
-        const std::vector<uint8_t> b = encode(a);
+        const std::vector<uint8_t> b = encodeUnchecked(a);
         EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadTree);
     }
     // Too deep: a chain of 49 splits along x of a 64-voxel lattice (each split's lower child a leaf); 48 are fine.
@@ -279,7 +292,7 @@ TEST(Tree, DecoderRefusesInvalidTrees) {
         a.tree = small;
         a.voxels = {{5, 1.0f}};
         a.weights.assign(a.topology.parameterCount(), 0.125f);
-        std::vector<uint8_t> b = encode(a);
+        std::vector<uint8_t> b = encodeUnchecked(a);  // a leaf past the last: invalid on purpose
         EXPECT_EQ(decode(b.data(), b.size(), out), DecodeStatus::BadVoxels);
         a.voxels = {{4, 1.0f}};
         b = encode(a);

@@ -344,10 +344,9 @@ inline int treeSupports(const format::Grid& g, const float factor[3], const Tree
                 node = x >= 0.0f ? n.child + 1 : n.child;
             }
         }
-        if (count < kMaxSupports) {
-            out[count].voxel = int64_t(v.nodes[node].child);
-            out[count++].weight = w0 * w1 * w2;
-        }
+        NRAD_CHECK(count < kMaxSupports);  // (a validated tree's band reaches at most 2 x 2 x 2 leaves)
+        out[count].voxel = int64_t(v.nodes[node].child);
+        out[count++].weight = w0 * w1 * w2;
         if (top == 0) break;
         const Item& it = stack[--top];
         node = it.node;
@@ -387,9 +386,10 @@ struct Partition {
         for (int k = 0; k < 3; ++k) factor[k] = gridFactor(g, k);
         cells = tree.empty() ? g.voxelCount() : uint64_t(leafCount);
         if (tree.empty()) return;
-        widths = treeBandWidths(g.dims, tree, band);
         uint32_t leaves = 0;
-        format::validateTree(g.dims, tree, leaves, &boxes);
+        const bool valid = format::validateTree(g.dims, tree, leaves, &boxes);
+        NRAD_CHECK(valid && leaves == leafCount);  // (the decoder validates an asset's tree; a bake's is built valid)
+        widths = treeBandWidths(g.dims, tree, band);
         if (!accelerate) return;
         for (int k = 0; k < 3; ++k) {
             startDims[k] = g.dims[k] < kMaxStartCells ? g.dims[k] : kMaxStartCells;

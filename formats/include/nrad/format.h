@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "nrad/check.h"
+
 namespace nrad::format {
 
 // ----- constants ------------------------------------------------------------------------------------------
@@ -539,11 +541,9 @@ inline uint64_t encodedSize(const Topology& t, uint64_t networks, uint64_t treeN
     return size;
 }
 
-// Encodes an asset (header.flags as given, version and sizes from this file). Preconditions (the caller's
-// job; encode() does not validate): weights.size() ==
-// voxels.size() x parameterCount, voxel indices strictly increasing and inside the grid (the tree's leaves
-// with kFlagTree, whose tree is valid), all values finite, scales > 0. The output decodes to the same asset (weights rounded to the encoding).
-inline std::vector<uint8_t> encode(const Asset& a) {
+// Encodes an asset as given, without checking it (header.flags as given, version and sizes from this file):
+// for writing invalid assets on purpose (the decoder's tests). Writers use encode().
+inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     using namespace detail;
     std::vector<std::vector<uint8_t>> sections;
     std::vector<uint32_t> types;
@@ -632,6 +632,25 @@ inline std::vector<uint8_t> encode(const Asset& a) {
     put32(out, 40, crc32(out.data() + tableAt, sections.size() * kSectionRecordSize));
     put32(out, 60, crc32(out.data(), 60));
     return out;
+}
+
+// Encodes an asset (header.flags as given, version and sizes from this file). Its preconditions are checked
+// (NRAD_CHECK: a writer that breaks one is a bug, stopped before it writes): weights.size() == voxels.size()
+// x parameterCount, voxel indices strictly increasing and inside the grid (the tree's leaves with kFlagTree,
+// whose tree is valid; the file records no leaf count, the reader counts them), all values finite, scales > 0. The output decodes to the
+// same asset (weights rounded to the encoding).
+inline std::vector<uint8_t> encode(const Asset& a) {
+    NRAD_CHECK(a.weights.size() == a.voxels.size() * a.topology.parameterCount());
+    uint32_t leaves = 0;
+    if (a.header.flags & kFlagTree) NRAD_CHECK(validateTree(a.grid.dims, a.tree, leaves));
+    const uint64_t cells = (a.header.flags & kFlagTree) ? uint64_t(leaves) : a.grid.voxelCount();
+    for (size_t i = 0; i < a.voxels.size(); ++i) {
+        NRAD_CHECK(a.voxels[i].index < cells && (i == 0 || a.voxels[i].index > a.voxels[i - 1].index));
+        NRAD_CHECK(std::isfinite(a.voxels[i].scale) && a.voxels[i].scale > 0.0f);
+    }
+    for (float w : a.weights) NRAD_CHECK(std::isfinite(w));
+    for (int k = 0; k < 3; ++k) NRAD_CHECK(std::isfinite(a.grid.lower[k]) && std::isfinite(a.grid.upper[k]));
+    return encodeUnchecked(a);
 }
 
 }  // namespace nrad::format
