@@ -223,7 +223,6 @@ TEST(Format, DecoderRejectsInvalidContent) {
 
 // A writer that breaks encode()'s preconditions is a bug: it stops before writing, naming the condition.
 TEST(FormatDeathTest, EncodeStopsAtBrokenPreconditions) {
-    GTEST_FLAG_SET(death_test_style, "threadsafe");
     Asset a = tinyAsset();
     ASSERT_FALSE(encode(a).empty());
     a.voxels[0].index = 2;  // outside a grid of 2 voxels

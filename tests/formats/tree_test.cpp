@@ -196,7 +196,6 @@ TEST(Tree, RoundTripsAsVersionTwoPointTwo) {
 // A partition is built from a valid tree with its true leaf count (the decoder validates an asset's; the
 // baker builds its own valid): anything else is a bug, stopped where it would have read the wrong leaves.
 TEST(TreeDeathTest, PartitionStopsAtAnInvalidTreeOrLeafCount) {
-    GTEST_FLAG_SET(death_test_style, "threadsafe");
     const Grid g = latticeGrid(4, 4, 4);
     const std::vector<TreeNode> good = uniformTree(g.dims);  // 64 leaves
     EXPECT_EQ(eval::Partition(g, 0.25f, good, 64).cells, 64u);

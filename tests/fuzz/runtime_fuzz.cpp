@@ -44,7 +44,7 @@ void fuzzTree(const uint8_t* data, size_t size) {
     }
     a.voxels = {{0, 1.0f}};
     a.weights.assign(a.topology.parameterCount(), 0.25f);
-    const std::vector<uint8_t> bytes = nrad::format::encode(a);
+    const std::vector<uint8_t> bytes = nrad::format::encodeUnchecked(a);  // the tree is the fuzzer's: invalid on purpose
     NradAsset asset = nullptr;
     if (nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0) != NRAD_OK) {
         if (asset) std::abort();
