@@ -221,6 +221,37 @@ void averageOutputs(std::vector<float>& params, const NetworkShape& shape) {
     for (size_t o = 0; o < nOut; ++o) b[o] = mb;
 }
 
+// Whether an attempt at training failed, and how: non-finite weights (`nonFinite`), every first-layer ReLU dead
+// on every training input, or an output that does not depend on the input although the targets vary.
+std::string attemptFailure(const Mlp& mlp, const PreparedSamples& d, const std::vector<size_t>& train, const TrainSettings& settings,
+                           float invScale, bool nonFinite) {
+    if (nonFinite) return "non-finite weights or error";
+    if (train.empty()) return {};
+    const int nIn = settings.shape.inputs, width = settings.shape.hidden.front();
+    MlpWorkspace ws;
+    std::vector<float> y(static_cast<size_t>(settings.shape.outputs));
+    std::vector<bool> alive(size_t(width), false);
+    glm::dvec3 mean(0.0), mean2(0.0), tmean(0.0), tmean2(0.0);
+    for (size_t i : train) {
+        mlp.forward(&d.inputs[i * size_t(nIn)], y.data(), ws);
+        for (int u = 0; u < width; ++u)
+            if (ws.activations(1)[u] > 0.0f) alive[size_t(u)] = true;
+        glm::dvec3 p(y[0], y[1], y[2]);
+        glm::dvec3 t(lossTarget(settings.loss, invScale, d.targets[i][0]), lossTarget(settings.loss, invScale, d.targets[i][1]),
+                     lossTarget(settings.loss, invScale, d.targets[i][2]));
+        mean += p;
+        mean2 += p * p;
+        tmean += t;
+        tmean2 += t * t;
+    }
+    double m = double(train.size());
+    double predVar = glm::dot(mean2 / m - (mean / m) * (mean / m), glm::dvec3(1.0));
+    double targetVar = glm::dot(tmean2 / m - (tmean / m) * (tmean / m), glm::dvec3(1.0));
+    if (std::none_of(alive.begin(), alive.end(), [](bool a) { return a; })) return "all hidden ReLUs dead";
+    if (train.size() >= 8 && targetVar > 1e-4 && predVar < 1e-8 * targetVar) return "constant output";
+    return {};
+}
+
 // One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
 // parameter but the output biases (added to each step's mean gradient), from the initialisation of `restart`
 // (0: the first).
@@ -230,7 +261,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     VoxelTrainResult result;
     result.voxel = voxel;
     result.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-    const int nIn = settings.shape.inputs, nOut = settings.shape.outputs;
+    const int nOut = settings.shape.outputs;
     const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
     const std::vector<size_t>& train = d.train;
     result.trainCount = train.size();
@@ -248,9 +279,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     const float invScale = 1.0f / result.scale;
 
     Mlp mlp(settings.shape);
-    MlpWorkspace ws;
     MlpBatchWorkspace bws;
-    std::vector<float> y(static_cast<size_t>(nOut));
     auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, bws, d, set, settings, result.transform, result.scale); };
 
     std::vector<float> keptParams;  // of the first attempt that did not fail
@@ -291,34 +320,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
         }
         mlp.parameters() = bestParams;
 
-        // Did this attempt fail? Non-finite weights, every first-layer ReLU dead on every training input, or
-        // an output that does not depend on the input although the targets vary.
-        std::string failure;
-        if (diverged && !std::isfinite(best)) failure = "non-finite weights or error";
-        if (failure.empty() && !train.empty()) {
-            int width = settings.shape.hidden.front();
-            std::vector<bool> alive(size_t(width), false);
-            glm::dvec3 mean(0.0), mean2(0.0), tmean(0.0), tmean2(0.0);
-            for (size_t i : train) {
-                mlp.forward(&d.inputs[i * size_t(nIn)], y.data(), ws);
-                for (int u = 0; u < width; ++u)
-                    if (ws.activations(1)[u] > 0.0f) alive[size_t(u)] = true;
-                glm::dvec3 p(y[0], y[1], y[2]);
-                glm::dvec3 t(lossTarget(settings.loss, invScale, d.targets[i][0]), lossTarget(settings.loss, invScale, d.targets[i][1]),
-                             lossTarget(settings.loss, invScale, d.targets[i][2]));
-                mean += p;
-                mean2 += p * p;
-                tmean += t;
-                tmean2 += t * t;
-            }
-            double m = double(train.size());
-            double predVar = glm::dot(mean2 / m - (mean / m) * (mean / m), glm::dvec3(1.0));
-            double targetVar = glm::dot(tmean2 / m - (tmean / m) * (tmean / m), glm::dvec3(1.0));
-            if (std::none_of(alive.begin(), alive.end(), [](bool a) { return a; }))
-                failure = "all hidden ReLUs dead";
-            else if (train.size() >= 8 && targetVar > 1e-4 && predVar < 1e-8 * targetVar)
-                failure = "constant output";
-        }
+        const std::string failure = attemptFailure(mlp, d, train, settings, invScale, diverged && !std::isfinite(best));
         if (failure.empty()) {
             result.curve = std::move(curve);
             result.epochs = epoch;

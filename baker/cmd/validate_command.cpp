@@ -49,49 +49,21 @@ std::string fmtG(double v) {
     return s;
 }
 
-int runValidate(const ValidateOptions& o, CLI::App* cmd) {
-    nlohmann::json bakeStats;
-    if (!o.bakeStats.empty()) {
-        std::ifstream f(o.bakeStats);
-        if (f) bakeStats = nlohmann::json::parse(f, nullptr, false);
-        if (!f || bakeStats.is_discarded() || !bakeStats.is_object()) {
-            std::fprintf(stderr, "nrad validate: %s: %s\n", o.bakeStats.c_str(),
-                         !f ? "cannot open file" : "not the JSON object `nrad bake --stats` writes");
-            return kExitBadInput;
-        }
-    }
-    if (int code = checkOutputsForCommand("validate", {}, {o.output})) return code;
-    ThreadScope threads(o.threads);
-    Scene scene;
-    if (int code = loadSceneForCommand("validate", o.scene, o.quiet, scene, o.importLimits)) return code;
-    nrad::Asset asset;
-    std::string message;
-    if (asset.loadFromFile(o.asset.c_str(), &message) != NRAD_OK) {
-        std::fprintf(stderr, "nrad validate: %s\n", message.c_str());
+// --bake-stats: the JSON object `nrad bake --stats` wrote (into `out`), or an error.
+int readBakeStats(const ValidateOptions& o, nlohmann::json& out) {
+    if (o.bakeStats.empty()) return kExitOk;
+    std::ifstream f(o.bakeStats);
+    if (f) out = nlohmann::json::parse(f, nullptr, false);
+    if (!f || out.is_discarded() || !out.is_object()) {
+        std::fprintf(stderr, "nrad validate: %s: %s\n", o.bakeStats.c_str(),
+                     !f ? "cannot open file" : "not the JSON object `nrad bake --stats` writes");
         return kExitBadInput;
     }
-    std::string metadata;
-    {
-        const char* json = nullptr;
-        size_t length = 0;
-        if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
-    }
-    if (int code = applyLightingForCommand("validate", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
-                                           scene, metadata)) return code;
-    if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
-    if (!scene.hasLight()) {
-        // Every image would be black and every ratio 0 / 0.
-        std::fprintf(stderr, "nrad validate: %s: nothing lights the scene (no emitter of positive power, no punctual light, "
-                             "no environment): there is no error to measure; give it an --environment\n", o.scene.c_str());
-        return kExitBadInput;
-    }
-    ValidateSettings s;
-    if (int code = chooseCameraForCommand("validate", scene, o.camera, o.view, o.quiet, s.camera)) return code;
-    const float aspect = s.camera.aspectRatio > 0.0f ? s.camera.aspectRatio : 1.0f;
-    if (int code = imageSizeForCommand("validate", o.width, o.height, aspect, 512, s.width, s.height)) return code;
-    if (int code = checkMemoryForCommand("validate", uint64_t(s.width) * uint64_t(s.height) * kValidateBytesPerPixel,
-                                         "validating at " + std::to_string(s.width) + " x " + std::to_string(s.height)))
-        return code;
+    return kExitOk;
+}
+
+// The run's settings from the options (the camera and the image size are chosen before).
+void copyRunSettings(const ValidateOptions& o, ValidateSettings& s) {
     s.referenceSpp = o.referenceSpp;
     s.maxDepth = o.maxDepth;
     s.neuralSpp = o.neuralSpp;
@@ -103,26 +75,10 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     s.baselinePathsPerProbe = o.baselinePathsPerProbe;
     s.referenceImage = o.reference;
     s.cacheDir = o.noCache ? std::string() : (o.cacheDir.empty() ? defaultCacheDir(o.output) : o.cacheDir);
-    ValidationResult r;
-    try {
-        r = runValidation(scene, o.scene, asset.get(), o.asset, s, [&](const std::string& line) {
-            if (!o.quiet) std::fprintf(stderr, "%s\n", line.c_str());
-        });
-    } catch (const IoError& e) {
-        std::fprintf(stderr, "nrad validate: %s\n", e.what());
-        return kExitIo;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "nrad validate: %s\n", e.what());
-        return kExitBadInput;
-    }
-    std::string html;
-    try {
-        html = writeReport(r, bakeStats, o.output);
-    } catch (const IoError& e) {
-        std::fprintf(stderr, "nrad validate: %s\n", e.what());
-        return kExitIo;
-    }
-    // The headline numbers.
+}
+
+// The summary's numbers: the headline, the baseline, where the error is, what the eye sees, by material.
+void printHeadline(const ValidateOptions& o, const ValidationResult& r) {
     std::printf("validated %s against %s (%dx%d): neural relMSE %.4g, RMSE %.4g, PSNR %.2f dB, render %.3g s (evaluation %.3g s)\n",
                 o.asset.c_str(), o.scene.c_str(), r.width, r.height, r.neural.metrics.relMse, r.neural.metrics.rmse,
                 r.neural.metrics.psnr, r.neural.seconds, r.neural.evaluationSeconds);
@@ -166,6 +122,10 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
             std::printf("\n");
         }
     }
+}
+
+// The summary's notes: bias, the path tracer at equal error, the bake's time, the reference, the report.
+void printNotesAndTimes(const ValidationResult& r, const nlohmann::json& bakeStats, const std::string& html) {
     for (const std::string& note : r.biasNotes) std::printf("  bias: %s\n", note.c_str());
     if (referenceIsBlack(r))
         std::printf("  path tracer at equal error: none: %s\n", kNoLightToCompare);
@@ -188,6 +148,65 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     }
     std::printf("  reference: %s%s%s\n  report: %s\n", r.referenceSource.c_str(),
                 r.referenceSeconds > 0 ? (" (" + std::to_string(r.referenceSeconds) + " s)").c_str() : "", noise.c_str(), html.c_str());
+}
+
+int runValidate(const ValidateOptions& o, CLI::App* cmd) {
+    nlohmann::json bakeStats;
+    if (int code = readBakeStats(o, bakeStats)) return code;
+    if (int code = checkOutputsForCommand("validate", {}, {o.output})) return code;
+    ThreadScope threads(o.threads);
+    Scene scene;
+    if (int code = loadSceneForCommand("validate", o.scene, o.quiet, scene, o.importLimits)) return code;
+    nrad::Asset asset;
+    std::string message;
+    if (asset.loadFromFile(o.asset.c_str(), &message) != NRAD_OK) {
+        std::fprintf(stderr, "nrad validate: %s\n", message.c_str());
+        return kExitBadInput;
+    }
+    std::string metadata;
+    {
+        const char* json = nullptr;
+        size_t length = 0;
+        if (nradGetMetadata(asset.get(), &json, &length) == NRAD_OK && json) metadata.assign(json, length);
+    }
+    if (int code = applyLightingForCommand("validate", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
+                                           scene, metadata)) return code;
+    if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
+    if (!scene.hasLight()) {
+        // Every image would be black and every ratio 0 / 0.
+        std::fprintf(stderr, "nrad validate: %s: nothing lights the scene (no emitter of positive power, no punctual light, "
+                             "no environment): there is no error to measure; give it an --environment\n", o.scene.c_str());
+        return kExitBadInput;
+    }
+    ValidateSettings s;
+    if (int code = chooseCameraForCommand("validate", scene, o.camera, o.view, o.quiet, s.camera)) return code;
+    const float aspect = s.camera.aspectRatio > 0.0f ? s.camera.aspectRatio : 1.0f;
+    if (int code = imageSizeForCommand("validate", o.width, o.height, aspect, 512, s.width, s.height)) return code;
+    if (int code = checkMemoryForCommand("validate", uint64_t(s.width) * uint64_t(s.height) * kValidateBytesPerPixel,
+                                         "validating at " + std::to_string(s.width) + " x " + std::to_string(s.height)))
+        return code;
+    copyRunSettings(o, s);
+    ValidationResult r;
+    try {
+        r = runValidation(scene, o.scene, asset.get(), o.asset, s, [&](const std::string& line) {
+            if (!o.quiet) std::fprintf(stderr, "%s\n", line.c_str());
+        });
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitIo;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitBadInput;
+    }
+    std::string html;
+    try {
+        html = writeReport(r, bakeStats, o.output);
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad validate: %s\n", e.what());
+        return kExitIo;
+    }
+    printHeadline(o, r);
+    printNotesAndTimes(r, bakeStats, html);
     return kExitOk;
 }
 

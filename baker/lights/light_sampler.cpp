@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "baker/scene/geometry.h"
 
@@ -218,9 +219,12 @@ uint64_t LightSampler::candidateGroups(const glm::vec3& p, const glm::vec3& ng) 
     return mask;
 }
 
-void LightSampler::buildGroups(const std::vector<double>& power) {
-    // 1. Lights: union of emissive triangles of one material that share a vertex index.
-    const size_t n = lights_.size();
+namespace {
+
+// The lights as the selection sees them: emissive triangles of one material that share a vertex index are one
+// light (a union of entries); every other entry is one by itself. In the order of their first entry.
+std::vector<std::vector<uint32_t>> connectedLights(const Scene& scene, const std::vector<std::unique_ptr<Light>>& entries) {
+    const size_t n = entries.size();
     std::vector<uint32_t> parent(n);
     for (size_t i = 0; i < n; ++i) parent[i] = uint32_t(i);
     auto find = [&](uint32_t a) {
@@ -229,10 +233,10 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
     };
     std::vector<std::pair<uint64_t, uint32_t>> keys;  // (material << 32 | vertex, entry)
     for (size_t i = 0; i < n; ++i) {
-        if (lights_[i]->triangle() < 0) continue;
-        uint32_t t = uint32_t(lights_[i]->triangle());
-        uint64_t mat = scene_.mesh.materialIds[t];
-        const glm::uvec3& tri = scene_.mesh.triangles[t];
+        if (entries[i]->triangle() < 0) continue;
+        uint32_t t = uint32_t(entries[i]->triangle());
+        uint64_t mat = scene.mesh.materialIds[t];
+        const glm::uvec3& tri = scene.mesh.triangles[t];
         for (uint32_t v : {tri.x, tri.y, tri.z}) keys.push_back({(mat << 32) | v, uint32_t(i)});
     }
     std::sort(keys.begin(), keys.end());
@@ -251,22 +255,21 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
         }
         lights[size_t(lightOfRoot[r])].push_back(uint32_t(i));
     }
+    return lights;
+}
 
-    // 2. Clusters when there are too many lights: split the largest cluster at the median of its lights'
-    // centres along the axis where they spread most.
-    std::vector<glm::vec3> lightCenter(lights.size());
-    for (size_t l = 0; l < lights.size(); ++l) {
-        glm::vec3 c(0.0f);
-        for (uint32_t i : lights[l]) c += lights_[i]->center();
-        lightCenter[l] = c / float(lights[l].size());
-    }
+// Clusters of lights, at most `maxClusters`: one per light while they are few enough; else the largest cluster
+// split at the median of its lights' centres along the axis where they spread most, until there are enough.
+// In the order of their first entry (`lights[l][0]`), so the numbering follows the scene.
+std::vector<std::vector<uint32_t>> clusterLights(const std::vector<std::vector<uint32_t>>& lights,
+                                                 const std::vector<glm::vec3>& lightCenter, size_t maxClusters) {
     std::vector<std::vector<uint32_t>> clusters(1);
     for (size_t l = 0; l < lights.size(); ++l) clusters[0].push_back(uint32_t(l));
-    if (lights.size() <= kMaxLightGroups) {
+    if (lights.size() <= maxClusters) {
         clusters.assign(lights.size(), {});
         for (size_t l = 0; l < lights.size(); ++l) clusters[l] = {uint32_t(l)};
     }
-    while (clusters.size() < kMaxLightGroups) {
+    while (clusters.size() < maxClusters) {
         size_t largest = 0;
         for (size_t c = 1; c < clusters.size(); ++c)
             if (clusters[c].size() > clusters[largest].size()) largest = c;
@@ -284,11 +287,56 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
         std::sort(upperHalf.begin(), upperHalf.end());
         clusters.push_back(std::move(upperHalf));
     }
-    // Groups in the order of their first entry, so the numbering follows the scene.
     for (auto& c : clusters) std::sort(c.begin(), c.end(), [&](uint32_t a, uint32_t b) { return lights[a][0] < lights[b][0]; });
     std::sort(clusters.begin(), clusters.end(), [&](const auto& a, const auto& b) { return lights[a[0]][0] < lights[b[0]][0]; });
+    return clusters;
+}
 
-    // 3. Group data.
+}  // namespace
+
+void LightSampler::groupBounds(Group& g, const std::vector<double>& power) const {
+    Bounds3 b;
+    bool planar = true;
+    glm::vec3 normal(0.0f);
+    for (uint32_t i : g.entries) {
+        g.power += power[i];
+        const Light& light = *lights_[i];
+        if (const Bounds3 lb = light.bounds(); !lb.empty()) {
+            b.extend(lb.lower);
+            b.extend(lb.upper);
+        }
+        if (light.unbounded()) g.unbounded = true;
+        if (light.triangle() < 0) {
+            planar = false;
+            continue;
+        }
+        const size_t t = size_t(light.triangle());
+        glm::vec3 nt = scene_.mesh.geometricNormal(t);
+        const Material& m = scene_.materials[scene_.mesh.materialIds[t]];
+        if (m.doubleSided || (normal != glm::vec3(0.0f) && glm::dot(normal, nt) < 0.9999f)) planar = false;
+        if (normal == glm::vec3(0.0f)) normal = nt;
+    }
+    g.planar = planar && normal != glm::vec3(0.0f);
+    g.normal = normal;
+    if (!b.empty()) {
+        g.lower = b.lower;
+        g.upper = b.upper;
+    }
+    g.center = 0.5f * (g.lower + g.upper);
+    g.half = 0.5f * (g.upper - g.lower);
+    g.diagonal = glm::length(g.upper - g.lower);
+}
+
+void LightSampler::buildGroups(const std::vector<double>& power) {
+    const std::vector<std::vector<uint32_t>> lights = connectedLights(scene_, lights_);
+    std::vector<glm::vec3> lightCenter(lights.size());
+    for (size_t l = 0; l < lights.size(); ++l) {
+        glm::vec3 c(0.0f);
+        for (uint32_t i : lights[l]) c += lights_[i]->center();
+        lightCenter[l] = c / float(lights[l].size());
+    }
+    const std::vector<std::vector<uint32_t>> clusters = clusterLights(lights, lightCenter, kMaxLightGroups);
+    const size_t n = lights_.size();
     groupOfEntry_.assign(n, 0);
     pickInGroup_.assign(n, 0.0f);
     entryQuad_.assign(n, EntryQuad{});
@@ -297,36 +345,7 @@ void LightSampler::buildGroups(const std::vector<double>& power) {
         Group g;
         for (uint32_t l : cluster) g.entries.insert(g.entries.end(), lights[l].begin(), lights[l].end());
         std::sort(g.entries.begin(), g.entries.end());
-        Bounds3 b;
-        bool planar = true;
-        glm::vec3 normal(0.0f);
-        for (uint32_t i : g.entries) {
-            g.power += power[i];
-            const Light& light = *lights_[i];
-            if (const Bounds3 lb = light.bounds(); !lb.empty()) {
-                b.extend(lb.lower);
-                b.extend(lb.upper);
-            }
-            if (light.unbounded()) g.unbounded = true;
-            if (light.triangle() < 0) {
-                planar = false;
-                continue;
-            }
-            const size_t t = size_t(light.triangle());
-            glm::vec3 nt = scene_.mesh.geometricNormal(t);
-            const Material& m = scene_.materials[scene_.mesh.materialIds[t]];
-            if (m.doubleSided || (normal != glm::vec3(0.0f) && glm::dot(normal, nt) < 0.9999f)) planar = false;
-            if (normal == glm::vec3(0.0f)) normal = nt;
-        }
-        g.planar = planar && normal != glm::vec3(0.0f);
-        g.normal = normal;
-        if (!b.empty()) {
-            g.lower = b.lower;
-            g.upper = b.upper;
-        }
-        g.center = 0.5f * (g.lower + g.upper);
-        g.half = 0.5f * (g.upper - g.lower);
-        g.diagonal = glm::length(g.upper - g.lower);
+        groupBounds(g, power);
         double acc = 0.0;
         for (uint32_t i : g.entries) {
             acc += power[i];

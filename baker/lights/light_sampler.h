@@ -143,6 +143,8 @@ private:
     // The sample of entry i (its own pdf times `pick`), with the entry recorded.
     LightSample sampleEntry(size_t i, float pick, const glm::vec3& p, const glm::vec2& u) const;
     const TriangleLight* triangleLight(size_t i) const;
+    // g's power, bounds and whether it is planar, from its entries.
+    void groupBounds(Group& g, const std::vector<double>& power) const;
     // Where g's two triangles form a parallelogram: sets g.parallelogram and g.quad, adds the quad to quads_.
     void detectParallelogram(Group& g, const std::vector<double>& power);
     // sample()'s pick: entry i for u.x; where it is half of a quad that sample() picks as one (entryQuad_),
