@@ -167,7 +167,8 @@ struct ConfigKeys {
     }
 };
 
-void readPartitionKeys(ConfigKeys& k, BakeOptions& o) {
+// The keys that are one flag's value each, in the order the file's errors are reported.
+void readValueKeys(ConfigKeys& k, BakeOptions& o) {
     k.takeNumberOrString("budget", "--budget", o.budget);
     k.take("levels", "--levels", o.levels);
     k.take("training", "--training", o.training);
@@ -181,9 +182,6 @@ void readPartitionKeys(ConfigKeys& k, BakeOptions& o) {
     k.take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
     if (k.given("wall_splits", "--no-wall-splits")) o.noWallSplits = !k.cfg.at("wall_splits").get<bool>();
     k.takeNumberOrString("grid", "--grid", o.grid);
-}
-
-void readSamplingAndNetworkKeys(ConfigKeys& k, BakeOptions& o) {
     k.take("points", "--points", o.points);
     k.take("paths", "--paths", o.paths);
     k.take("noisy_paths", "--noisy-paths", o.noisyPaths);
@@ -198,9 +196,6 @@ void readSamplingAndNetworkKeys(ConfigKeys& k, BakeOptions& o) {
     k.take("encoding", "--encoding", o.encoding);
     k.take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
     k.take("blend_band", "--blend-band", o.blendBand);
-}
-
-void readLightingKeys(ConfigKeys& k, BakeOptions& o) {
     k.take("environment", "--environment", o.lighting.environment);
     k.take("environment_intensity", "--environment-intensity", o.lighting.intensity);
     k.take("environment_rotation", "--environment-rotation", o.lighting.rotationDegrees);
@@ -240,9 +235,7 @@ int readConfig(BakeOptions& o, CLI::App* cmd, ConfigGiven& given) {
         const nlohmann::json cfg = nlohmann::json::parse(f);
         if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
         ConfigKeys keys{cfg, cmd, {}};
-        readPartitionKeys(keys, o);
-        readSamplingAndNetworkKeys(keys, o);
-        readLightingKeys(keys, o);
+        readValueKeys(keys, o);
         readTrainingKeys(keys, o);
         given.points = cfg.contains("points");
         given.paths = cfg.contains("paths");

@@ -341,15 +341,9 @@ ShProbeGrid fitShProbeGrid(const std::vector<TrainingSample>& samples, const glm
         }
     }
     // Stopping, per channel: the relative residual below 1e-7, or the objective falling by less than kStall of
-    // itself over the last kWindow iterations (each step lowers J by exactly alpha r.z). Measured on zdm2
-    // under a 1 MB budget (18,792 probes, 3.9 M samples, issue 37): the residual alone took 1,259 iterations
-    // (424 s); stopping at a stall of 1e-3 / 1e-4 / 1e-5 / 1e-6 took 58 / 122 / 243 / 371 and left the
-    // probes' image relMSE within 0.08% / 0.03% / 0.04% / 0.02% of it: the directions still moving are those
-    // no sample, and so no pixel, sees. At the baseline's default budget there (469,800 samples) a stall of
-    // 1e-3 / 3e-3 / 1e-2 / 3e-2 took 71 / 46 / 31 / 23 iterations (2.4 / 1.6 / 1.1 / 0.9 s of fit) with
-    // image relMSE into the level 0.5592 / 0.5618 / 0.5623 / 0.5624 and from outside 0.05479 / 0.05467 /
-    // 0.05347 / 0.05367; the Cornell box 0.02482 -> 0.02493 (23 -> 17 iterations), the glossy box 0.01577 ->
-    // 0.01603 (18 -> 14): within 2.5%, where one set of samples varies by 8%. 1e-2 it is.
+    // itself over the last kWindow iterations (each step lowers J by exactly alpha r.z). The directions still
+    // moving then are those no sample, and so no pixel, sees; docs/usage.md ("Baseline") has the sweep that
+    // chose 1e-2.
     constexpr double kStall = 1e-2;
     constexpr size_t kWindow = 10;
     std::array<std::vector<double>, 3> history;

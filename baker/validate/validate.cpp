@@ -583,11 +583,9 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
                 ss.paths = paths;
             }
         }
-        // No extra paths for noisy targets: least squares averages a probe's noise over its points, so the
-        // bake's default (4x the paths where a point's target is noisy) made the baseline's sampling 2.7x
-        // slower on zdm2 at 1 MB and 2x on the Cornell box, and its image relMSE no better (zdm2 into the
-        // level / from outside 0.5725 / 0.05631 with it, 0.5592 / 0.05479 without; the Cornell box 0.02453 /
-        // 0.02482, the glossy box 0.01594 / 0.01577). The paths budget above counts every path.
+        // No extra paths for noisy targets: least squares averages a probe's noise over its points, and the
+        // extra paths cost time for no better probes (docs/usage.md, "Baseline"). The paths budget above
+        // counts every path.
         ss.extraPathsFactor = 1;
         VoxelGrid grid(scene.bounds, dims);
         SurfacePieces pieces(scene.mesh, grid);

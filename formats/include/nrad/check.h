@@ -1,7 +1,6 @@
 // NRAD_CHECK(condition): an invariant of the code, never of its input (bad input gets an error code or a
 // message). Where it fails, the process stops with the condition, file and line on stderr, in every build:
-// a bug that passed silently would otherwise write a wrong asset or read past an array. NRAD_DCHECK: the
-// same in debug builds only (NDEBUG undefined), for checks in hot loops.
+// a bug that passed silently would otherwise write a wrong asset or read past an array.
 #pragma once
 
 #include <cstdio>
@@ -18,8 +17,3 @@ namespace nrad::detail {
 }  // namespace nrad::detail
 
 #define NRAD_CHECK(condition) ((condition) ? (void)0 : ::nrad::detail::checkFailed(#condition, __FILE__, __LINE__))
-#ifdef NDEBUG
-#define NRAD_DCHECK(condition) ((void)sizeof(condition))
-#else
-#define NRAD_DCHECK(condition) NRAD_CHECK(condition)
-#endif
