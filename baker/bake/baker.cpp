@@ -419,7 +419,33 @@ format::Topology bakeTopology(const BakeSettings& settings) {
     return topology;
 }
 
-BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress) {
+BakeSettings resolvedBakeSettings(BakeSettings s) {
+    SampleSettings& ss = s.samples;
+    const bool integral = s.training == TrainingMethod::Integral;
+    if (ss.paths == 0) ss.paths = integral ? kIntegralStartPaths : kMonteCarloPaths;
+    if (ss.points > 0) return s;
+    const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
+    uint64_t points = 0;
+    if (s.partition.budgetBytes > 0) {
+        const format::Topology t = bakeTopology(s);
+        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
+        points = std::clamp<uint64_t>(networks * kPointsPerNetwork, kBasePoints, kMaxAutomaticPoints);
+    } else if (integral) {
+        points = std::clamp<uint64_t>(kIntegralPointsPerCell * cells, kIntegralMinPoints, kMaxAutomaticPoints);
+    } else {
+        points = std::clamp<uint64_t>(kBasePoints * cells / 27, kBasePoints, kMaxAutomaticPoints);
+    }
+    ss.points = uint32_t(points);
+    return s;
+}
+
+const SampleSettings& defaultBakeSamples() {
+    static const BakeSettings s = resolvedBakeSettings(BakeSettings());
+    return s.samples;
+}
+
+BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakeProgress& progress) {
+    const BakeSettings settings = resolvedBakeSettings(given);
     BakeResult result;
     auto t0 = std::chrono::steady_clock::now();
     BakeTracing tracing(scene, settings);

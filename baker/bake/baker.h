@@ -102,6 +102,21 @@ struct BakeProgress {
     std::function<void(uint32_t generation, const BakeResult& soFar)> generation;
 };
 
+// The settings' automatic values, where SampleSettings' points or paths are 0 (what `nrad bake` and every
+// library caller get alike):
+// - paths: kMonteCarloPaths, or kIntegralStartPaths for the Monte Carlo start of integral training;
+// - points: with a budget, kPointsPerNetwork for every network it pays for; integral training on a grid,
+//   kIntegralPointsPerCell per cell (at least kIntegralMinPoints); a Monte Carlo grid, kBasePoints per 27 cells
+//   (at least kBasePoints: fewer per cell make each network a block of its own noise, docs/results.md);
+//   at most kMaxAutomaticPoints, so that a large bake stays in minutes.
+constexpr uint32_t kMonteCarloPaths = 32, kIntegralStartPaths = 4;
+constexpr uint32_t kBasePoints = 160000, kPointsPerNetwork = 1500, kIntegralPointsPerCell = 1500, kIntegralMinPoints = 40000;
+constexpr uint32_t kMaxAutomaticPoints = 4000000;
+BakeSettings resolvedBakeSettings(BakeSettings settings);
+// The samples of a bake at the defaults, resolved (what validate's baseline falls back on).
+const SampleSettings& defaultBakeSamples();
+
+// Bakes with resolvedBakeSettings(settings).
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {});
 
 // The networks' shape as the asset records it: hidden widths, weight encoding, output transform (the loss's).

@@ -36,8 +36,9 @@ struct TrainingSample {
 inline glm::vec3 demodulationDivisor(const TrainingSample& t) { return glm::max(t.reflectance, glm::vec3(eval::kMinReflectance)); }
 
 struct SampleSettings {
-    uint32_t points = 160000;
-    uint32_t paths = 32;
+    // 0: chosen by the bake from its other settings (resolvedBakeSettings, baker.h); must be set otherwise.
+    uint32_t points = 0;
+    uint32_t paths = 0;
     int maxDepth = 0;  // segments, counting the (virtual) one that reached the point; 0 = unbounded (issue 38)
     uint32_t seed = 0;
     uint32_t minSamplesPerVoxel = 64;  // the floor for voxels with surface area

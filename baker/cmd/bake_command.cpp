@@ -31,9 +31,6 @@ const BakeSettings& defaults() {
     return s;
 }
 
-// --training integral without --paths: the Monte Carlo start's paths per point.
-constexpr uint32_t kIntegralStartPaths = 4;
-
 std::string joinFloats(const std::vector<float>& v) {
     std::string s;
     for (float x : v) {
@@ -56,25 +53,52 @@ bool parseFloats(const std::string& s, std::vector<float>& out) {
     return out.size() <= 8;
 }
 
+// "3" for a cubic grid, else "NxMxK".
+std::string gridText(const glm::uvec3& g) {
+    if (g.x == g.y && g.y == g.z) return std::to_string(g.x);
+    return std::to_string(g.x) + "x" + std::to_string(g.y) + "x" + std::to_string(g.z);
+}
+
+std::string hiddenText(const std::vector<int>& widths) {
+    std::string s;
+    for (int w : widths) s += (s.empty() ? "" : ",") + std::to_string(w);
+    return s;
+}
+
+const char* encodingName(format::WeightEncoding e) { return e == format::WeightEncoding::Float32 ? "fp32" : "fp16"; }
+
+// The command line of a bake: where its output goes and how it runs, then its settings, each starting at the
+// library's default (BakeSettings) as the flags' text; bakeSettingsTable() binds them to their flags and keys.
 struct BakeOptions {
-    std::string scene, output, config, stats;
-    // Defaults from the settings themselves (one definition; chosen by measurement, docs/training.md).
-    std::string grid = "3", hidden = "9", loss = lossName(defaults().train.loss), encoding = "fp16";
-    uint32_t points = defaults().samples.points, paths = defaults().samples.paths, seed = 0, minSamples = 64;
-    uint32_t noisyPaths = defaults().samples.extraPathsFactor;
-    NeeMode nee = NeeMode::Power;
-    int maxDepth = 0, epochs = 1500, threads = 0, batch = 32, patience = 300;
-    float learningRate = 0.01f, blendBand = defaults().blendBand;
+    std::string scene, output, config, stats, saveGenerations;
+    int threads = 0;
+    bool quiet = false, dumpConfig = false;
+
+    std::string grid = gridText(defaults().grid), hidden = hiddenText(defaults().train.shape.hidden);
+    std::string loss = lossName(defaults().train.loss), encoding = encodingName(defaults().encoding);
+    uint32_t points = defaults().samples.points, paths = defaults().samples.paths, seed = defaults().samples.seed;
+    uint32_t minSamples = defaults().samples.minSamplesPerVoxel, noisyPaths = defaults().samples.extraPathsFactor;
+    std::string nee = neeModeName(defaults().nee.mode);
+    int maxDepth = defaults().samples.maxDepth, epochs = defaults().train.epochs, batch = defaults().train.batchSize;
+    int patience = defaults().train.patience;
+    float learningRate = defaults().train.learningRate, blendBand = defaults().blendBand;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
-    bool quiet = false, noMetadata = false, noDemodulate = false, noWallSplits = false;
-    LightingOptions lighting;
+    bool noMetadata = !defaults().metadata, noDemodulate = !defaults().train.demodulate, noWallSplits = !defaults().walls.enabled;
+    LightingOptions lighting = bakeLighting();
     std::string training = trainingMethodName(defaults().training);
     IntegralSettings integral = defaults().integral;
-    std::string generationLr;
-    std::string saveGenerations;  // path prefix: integral training writes every round's asset there
+    std::string generationLr = joinFloats({defaults().integral.learningRate, defaults().integral.finalLearningRate});
     ImportLimits importLimits;
+
+    // Mixed lighting by default: the engine draws the direct light of sharp punctual lights and a sharp sun,
+    // the asset holds the rest. Baked, a sun's direct light is a smear (docs/lights.md, docs/results.md).
+    static LightingOptions bakeLighting() {
+        LightingOptions l;
+        l.runtimeDirect = "auto";
+        return l;
+    }
 };
 
 bool parseGrid(const std::string& s, glm::uvec3& out) {
@@ -141,110 +165,84 @@ int usage(const std::string& what) {
 // boxes stay far below, a sunlit interior baked with its sun reads mean 27.9, worst 162).
 constexpr double kLargeHeldOutMean = 1.0, kLargeHeldOutWorst = 5.0;
 
-// What --config itself gave (the rules for defaults that yield to a given value ask).
-struct ConfigGiven {
-    bool environment = false, lighting = false, points = false, paths = false;
-};
-
-// --config's reader: a key's value where no flag set it; `known` gathers every key it reads.
-struct ConfigKeys {
-    const nlohmann::json& cfg;
-    CLI::App* cmd;
-    std::set<std::string> known;
-
-    // Whether the file has `key` and its flag was not given (the flag wins).
-    bool given(const char* key, const char* flag) {
-        known.insert(key);
-        return cfg.contains(key) && cmd->count(flag) == 0;
-    }
-    template <typename T>
-    void take(const char* key, const char* flag, T& value) {
-        if (given(key, flag)) value = cfg.at(key).get<T>();
-    }
-    // A key that is a number or the flag's string.
-    void takeNumberOrString(const char* key, const char* flag, std::string& value) {
-        if (given(key, flag)) value = cfg[key].is_number_integer() ? std::to_string(cfg[key].get<int64_t>()) : cfg[key].get<std::string>();
-    }
-};
-
-// The keys that are one flag's value each, in the order the file's errors are reported.
-void readValueKeys(ConfigKeys& k, BakeOptions& o) {
-    k.takeNumberOrString("budget", "--budget", o.budget);
-    k.take("levels", "--levels", o.levels);
-    k.take("training", "--training", o.training);
-    k.take("generations", "--generations", o.integral.generations);
-    k.take("generation_points", "--generation-points", o.integral.points);
-    k.take("generation_paths", "--generation-paths", o.integral.paths);
-    k.take("generation_epochs", "--generation-epochs", o.integral.epochs);
-    k.take("bounces", "--bounces", o.integral.bounces);
-    k.take("start_epochs", "--start-epochs", o.integral.startEpochs);
-    k.take("start_restarts", "--start-restarts", o.integral.startRestarts);
-    k.take("min_leaf_samples", "--min-leaf-samples", o.minLeafSamples);
-    if (k.given("wall_splits", "--no-wall-splits")) o.noWallSplits = !k.cfg.at("wall_splits").get<bool>();
-    k.takeNumberOrString("grid", "--grid", o.grid);
-    k.take("points", "--points", o.points);
-    k.take("paths", "--paths", o.paths);
-    k.take("noisy_paths", "--noisy-paths", o.noisyPaths);
-    k.take("max_depth", "--max-depth", o.maxDepth);
-    k.takeNumberOrString("hidden", "--hidden", o.hidden);
-    k.take("epochs", "--epochs", o.epochs);
-    k.take("seed", "--seed", o.seed);
-    k.take("batch_size", "--batch-size", o.batch);
-    k.take("patience", "--patience", o.patience);
-    k.take("learning_rate", "--learning-rate", o.learningRate);
-    k.take("loss", "--loss", o.loss);
-    k.take("encoding", "--encoding", o.encoding);
-    k.take("min_samples_per_voxel", "--min-samples-per-voxel", o.minSamples);
-    k.take("blend_band", "--blend-band", o.blendBand);
-    k.take("environment", "--environment", o.lighting.environment);
-    k.take("environment_intensity", "--environment-intensity", o.lighting.intensity);
-    k.take("environment_rotation", "--environment-rotation", o.lighting.rotationDegrees);
-    k.take("sun", "--sun", o.lighting.sun);
-    k.take("sun_illuminance", "--sun-illuminance", o.lighting.sunIlluminance);
-    k.take("sun_angle", "--sun-angle", o.lighting.sunAngle);
-    k.take("runtime_direct", "--runtime-direct", o.lighting.runtimeDirect);
+// Every setting of `nrad bake`: its --config key, its flag, its help; its default is the option's value now.
+SettingsTable bakeSettingsTable(BakeOptions& o) {
+    SettingsTable t;
+    t.add("--grid", &o.grid, "Voxel grid: N (cubic) or NxMxK");
+    t.add("--points", &o.points, "Surface points (training samples) before the per-voxel floor")
+        .describeDefault("0: automatic: " + std::to_string(kBasePoints) + ", and as many per cell on grids finer than 27 cells; with "
+                         "--budget " + std::to_string(kPointsPerNetwork) + " per network it pays for; with --training integral " +
+                         std::to_string(kIntegralPointsPerCell) + " per cell, at least " + std::to_string(kIntegralMinPoints) +
+                         "; at most " + std::to_string(kMaxAutomaticPoints));
+    t.add("--paths", &o.paths, "Paths per training sample")
+        .describeDefault("0: automatic: " + std::to_string(kMonteCarloPaths) + "; " + std::to_string(kIntegralStartPaths) +
+                         " for the Monte Carlo start of --training integral");
+    t.add("--noisy-paths", &o.noisyPaths,
+          "Points whose target's relative standard error over their paths exceeds 0.15 get this many times the paths; 1: off, "
+          "which takes the glossy box from relMSE 0.0037 to 0.0085 and makes bakes 1.3-1.6x faster");
+    t.add("--nee", &o.nee,
+          "Light selection of the training paths: power, uniform, or learned (a selection network trained on warm-up paths "
+          "from the training points first)")
+        .checkedBy([](CLI::Option* p) { p->transform(CLI::IsMember(neeModes(), CLI::ignore_case)); });
+    t.add("--max-depth", &o.maxDepth,
+          "Path length in segments for training radiance; 0 = unbounded, with Russian roulette (the full light transport; a "
+          "length cuts off the light of longer paths, a bias validate reports)");
+    t.add("--hidden", &o.hidden, "Hidden layer widths, comma-separated");
+    t.add("--epochs", &o.epochs, "Maximum training epochs per voxel");
+    t.add("--batch-size", &o.batch, "Mini-batch size");
+    t.add("--patience", &o.patience, "Stop a voxel after this many epochs without a better held-out error");
+    t.add("--learning-rate", &o.learningRate, "Adam learning rate at the start");
+    t.add("--loss", &o.loss, "l2, relative-l2 or log-l2");
+    t.add("--encoding", &o.encoding, "Weight encoding: fp16 or fp32");
+    t.add("--min-samples-per-voxel", &o.minSamples, "Floor of samples for a voxel with surface");
+    t.add("--training", &o.training,
+          "monte-carlo (each target from --paths full paths) or integral (within the integral equation: a short Monte Carlo "
+          "start of --points points and --paths paths, then rounds of fresh points whose targets are --bounces bounces with "
+          "the networks for the rest of the path; docs/training.md)");
+    t.add("--generations", &o.integral.generations, "Integral training: rounds after the Monte Carlo start");
+    t.add("--generation-points", &o.integral.points, "Integral training: fresh points per round")
+        .describeDefault("0: automatic: 2000 per network, at least 50000");
+    t.add("--generation-paths", &o.integral.paths, "Integral training: target estimates per point in a round");
+    t.add("--generation-epochs", &o.integral.epochs, "Integral training: passes over each round's samples");
+    t.add("--generation-lr", &o.generationLr, "Integral training: learning rate of the first and the last round");
+    t.add("--average-decay", &o.integral.averageDecay,
+          "Integral training: per-step decay of the networks' moving average, 0 = none");
+    t.add("--start-epochs", &o.integral.startEpochs, "Integral training: at most this many epochs for the Monte Carlo start");
+    t.add("--start-restarts", &o.integral.startRestarts,
+          "Integral training: initialisations of each start network, the lowest held-out error kept")
+        .describeDefault("0: 4 with 32 rounds or more, else 1");
+    t.add("--bounces", &o.integral.bounces, "Integral training: bounces before the networks stand in");
+    t.add("--weight-decay", &o.weightDecay,
+          "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training samples; "
+          "0 = unregularised");
+    t.add("--blend-band", &o.blendBand,
+          "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; 0 = none");
+    t.add("--budget", &o.budget,
+          "Asset size in bytes (suffix K or M, 1024-based): an adaptive kd-tree partition refined where it reduces the "
+          "expected error most per byte, instead of the uniform --grid (docs/usage.md)");
+    t.add("--levels", &o.levels, "With --budget: the finest cell is 2^-levels of the scene's longest axis");
+    t.add("--min-leaf-samples", &o.minLeafSamples, "With --budget: training samples a leaf with surface keeps at least");
+    t.add("--seed", &o.seed, "Seed (sampling, split, initialisation, order)");
+    addImportSettings(t, o.importLimits);
+    t.add("--no-metadata", &o.noMetadata, "Leave out the asset's JSON metadata section");
+    t.add("--no-wall-splits", &o.noWallSplits,
+          "Without --budget: keep the grid's cells whole where a wall divides one (by default such a cell is split at the "
+          "wall, so that no network holds a lit and a dark room; docs/usage.md)");
+    t.add("--no-demodulate", &o.noDemodulate,
+          "Networks learn the scattered radiance itself, not divided by the surface's reflectance");
+    addLightingSettings(t, o.lighting);
+    return t;
 }
 
-void readTrainingKeys(ConfigKeys& k, BakeOptions& o) {
-    if (k.given("weight_decay", "--weight-decay")) {
-        const nlohmann::json& w = k.cfg["weight_decay"];
-        std::vector<float> v;
-        if (w.is_number()) v.push_back(w.get<float>());
-        for (const nlohmann::json& x : w.is_array() ? w : nlohmann::json::array()) v.push_back(x.get<float>());
-        o.weightDecay = w.is_number() || w.is_array() ? joinFloats(v) : w.get<std::string>();
-    }
-    if (k.given("nee", "--nee")) {
-        const std::string mode = k.cfg.at("nee").get<std::string>();
-        if (!parseNeeMode(mode, o.nee)) throw std::runtime_error("\"nee\": expected power, uniform or learned, not '" + mode + "'");
-    }
-    k.take("generation_lr", "--generation-lr", o.generationLr);
-    k.take("average_decay", "--average-decay", o.integral.averageDecay);
-    if (k.given("demodulate", "--no-demodulate")) o.noDemodulate = !k.cfg.at("demodulate").get<bool>();
-    if (k.given("metadata", "--no-metadata")) o.noMetadata = !k.cfg.at("metadata").get<bool>();
-    k.take("max_texture_pixels", "--max-texture-pixels", o.importLimits.maxTexturePixels);
-    k.take("max_triangles", "--max-triangles", o.importLimits.maxTriangles);
-    if (o.importLimits.maxTexturePixels < 1 || o.importLimits.maxTriangles < 1)
-        throw std::runtime_error("\"max_texture_pixels\" and \"max_triangles\" must be at least 1");
-}
-
-// A config file supplies defaults; flags given on the command line win. Unknown keys are refused.
-int readConfig(BakeOptions& o, CLI::App* cmd, ConfigGiven& given) {
+// A config file supplies defaults; flags given on the command line win. Unknown keys are refused. `given`: the
+// keys the file gave.
+int readConfig(BakeOptions& o, CLI::App* cmd, std::set<std::string>& given) {
     try {
         std::ifstream f(o.config);
         if (!f) throw std::runtime_error("cannot open file");
         const nlohmann::json cfg = nlohmann::json::parse(f);
         if (!cfg.is_object()) throw std::runtime_error("not a JSON object");
-        ConfigKeys keys{cfg, cmd, {}};
-        readValueKeys(keys, o);
-        readTrainingKeys(keys, o);
-        given.points = cfg.contains("points");
-        given.paths = cfg.contains("paths");
-        given.environment = cfg.contains("environment");
-        for (const char* k : {"environment", "environment_intensity", "environment_rotation", "sun", "sun_illuminance", "sun_angle",
-                              "runtime_direct"})
-            given.lighting = given.lighting || cfg.contains(k);
-        for (auto& [key, value] : cfg.items())
-            if (keys.known.count(key) == 0) throw std::runtime_error("unknown key '" + key + "'");
+        given = bakeSettingsTable(o).readConfig(cfg, cmd);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "nrad bake: %s: %s\n", o.config.c_str(), e.what());
         return kExitBadInput;
@@ -265,8 +263,8 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     else
         return usage("--encoding " + o.encoding + ": expected fp16 or fp32");
     if (o.noisyPaths < 1 || o.noisyPaths > 64) return usage("--noisy-paths: expected 1 (off) to 64");
-    if (o.points < 1 || o.paths < 1 || o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f))
-        return usage("--points, --paths, --epochs, --batch-size and --learning-rate must be positive, --max-depth >= 0");
+    if (o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f))
+        return usage("--epochs, --batch-size, --patience and --learning-rate must be positive, --max-depth >= 0");
     if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
         return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
     s.blendBand = o.blendBand;
@@ -310,40 +308,15 @@ int integralSettings(BakeOptions& o, BakeSettings& s) {
     return kExitOk;
 }
 
-// The points and paths where neither a flag nor the config file gave them.
-void defaultPointsAndPaths(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, const BakeSettings& s) {
-    const bool pointsGiven = cmd->count("--points") > 0 || given.points;
-    // With a budget: enough points for the networks it can pay for (1,500 each; at most 4 M, so that a 1 MB
-    // bake stays in minutes). Fewer starve the networks (zdm2 at 47 KB: docs/results.md).
-    if (s.partition.budgetBytes > 0 && !pointsGiven) {
-        const format::Topology t = bakeTopology(s);
-        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
-        o.points = uint32_t(std::clamp<uint64_t>(networks * 1500, o.points, 4000000));
-    }
-    // Training within the integral equation starts from a few Monte Carlo paths per point (of every length,
-    // as every bake's are), from 1,500 points per grid cell (at least 40,000): docs/training.md.
-    if (s.training == TrainingMethod::Integral && cmd->count("--paths") == 0 && !given.paths) o.paths = kIntegralStartPaths;
-    // A grid finer than the default's 3 x 3 x 3: the default's density, 160,000 points per 27 cells (at most
-    // 4 M). At a fixed count each network of --grid 4 or 6 gets 42% or 13% of the samples and makes a block of
-    // its own noise (docs/results.md).
-    if (s.training == TrainingMethod::MonteCarlo && s.partition.budgetBytes == 0 && !pointsGiven) {
-        const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
-        o.points = uint32_t(std::clamp<uint64_t>(uint64_t(o.points) * cells / 27, o.points, 4000000));
-    }
-    if (s.training == TrainingMethod::Integral && s.partition.budgetBytes == 0 && !pointsGiven)
-        o.points = uint32_t(std::clamp<uint64_t>(1500ull * s.grid.x * s.grid.y * s.grid.z, 40000, 4000000));
-}
-
-// The bake's settings from the options (usage errors refused before any work).
-int settingsFromOptions(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, BakeSettings& s) {
+// The bake's settings from the options (usage errors refused before any work), automatic values resolved.
+int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     if (int code = networkSettings(o, s)) return code;
     if (int code = partitionSettings(o, s)) return code;
     if (int code = integralSettings(o, s)) return code;
-    defaultPointsAndPaths(o, cmd, given, s);
+    if (!parseNeeMode(o.nee, s.nee.mode)) return usage("--nee " + o.nee + ": expected power, uniform or learned");
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.samples.extraPathsFactor = o.noisyPaths;
-    s.nee.mode = o.nee;
     s.samples.maxDepth = o.maxDepth;
     s.samples.seed = o.seed;
     s.samples.minSamplesPerVoxel = o.minSamples;
@@ -355,6 +328,7 @@ int settingsFromOptions(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given,
     s.metadata = !o.noMetadata;
     s.train.demodulate = !o.noDemodulate;
     s.walls.enabled = !o.noWallSplits;
+    s = resolvedBakeSettings(s);
     return kExitOk;
 }
 
@@ -380,13 +354,11 @@ void reportMixedLighting(const Scene& scene) {
 }
 
 // The scene, lit as the flags and the config file say (into s.lightingJson).
-int loadLitScene(BakeOptions& o, CLI::App* cmd, const ConfigGiven& given, Scene& scene, BakeSettings& s) {
+int loadLitScene(const BakeOptions& o, CLI::App* cmd, const std::set<std::string>& configKeys, Scene& scene, BakeSettings& s) {
     if (int code = loadSceneForCommand("bake", o.scene, o.quiet, scene, o.importLimits)) return code;
-    // Mixed lighting by default: the engine draws the direct light of sharp punctual lights and a sharp sun,
-    // the asset holds the rest. Baked, a sun's direct light is a smear (docs/lights.md, docs/results.md).
-    if (o.lighting.runtimeDirect.empty()) o.lighting.runtimeDirect = "auto";
-    if (int code = applyLightingForCommand("bake", o.lighting, lightingFlagsGiven(cmd) || given.lighting,
-                                           cmd->count("--environment") > 0 || given.environment, o.quiet, scene, {}, &s.lightingJson))
+    // (No lighting was recorded before the bake: whether any lighting flag was given does not matter.)
+    if (int code = applyLightingForCommand("bake", o.lighting, true, cmd->count("--environment") > 0 || configKeys.count("environment") > 0,
+                                           o.quiet, scene, {}, &s.lightingJson))
         return code;
     if (!o.quiet) reportMixedLighting(scene);
     return kExitOk;
@@ -580,7 +552,7 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     j["hidden_samples"] = r.sampleStats.hiddenSamples;
     j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
     j["noisy_samples"] = r.sampleStats.noisyPoints;
-    j["nee"] = {{"mode", neeModeName(o.nee)},
+    j["nee"] = {{"mode", neeModeName(s.nee.mode)},
                 {"warmup_paths", r.sampleStats.neeWarmupPaths},
                 {"training_steps", r.sampleStats.neeTrainingSteps},
                 {"warmup_seconds", r.sampleStats.neeWarmupSeconds}};
@@ -590,6 +562,8 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     j["seconds"] = {{"load", times.load}, {"setup", r.timings.setup}, {"sampling", r.timings.sampling},
                     {"partition", r.timings.partition}, {"training", r.timings.training}, {"writing", times.write}};
     j["settings"] = nlohmann::json::parse(assetMetadata(scene, s, r))["bake"];
+    BakeOptions given = o;
+    j["config"] = bakeSettingsTable(given).json();  // a --config file that repeats this bake
     j["voxels"] = voxelStats(r);
     try {
         writeTextAtomically(o.stats, j.dump(1) + "\n");
@@ -601,11 +575,15 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
 }
 
 int runBake(BakeOptions o, CLI::App* cmd) {
-    ConfigGiven given;
+    std::set<std::string> configKeys;
     if (!o.config.empty())
-        if (int code = readConfig(o, cmd, given)) return code;
+        if (int code = readConfig(o, cmd, configKeys)) return code;
     BakeSettings s;
-    if (int code = settingsFromOptions(o, cmd, given, s)) return code;
+    if (int code = settingsFromOptions(o, s)) return code;
+    if (o.dumpConfig) {
+        std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
+        return kExitOk;
+    }
     {
         std::vector<std::string> outputs = {o.output};
         if (!o.stats.empty()) outputs.push_back(o.stats);
@@ -616,7 +594,7 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     BakeTimes times;
     auto t0 = std::chrono::steady_clock::now();
     Scene scene;
-    if (int code = loadLitScene(o, cmd, given, scene, s)) return code;
+    if (int code = loadLitScene(o, cmd, configKeys, scene, s)) return code;
     times.load = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     BakeResult r;
     std::vector<uint8_t> bytes;
@@ -636,70 +614,16 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("bake", "Bake a glTF scene into a neural radiance asset (.nrad)");
     cmd->add_option("scene", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("-o,--output", o->output, "Output asset (.nrad)")->required();
-    cmd->add_option("--grid", o->grid, "Voxel grid: N (cubic) or NxMxK (default 3)");
-    cmd->add_option("--points", o->points, "Surface points (training samples) before the per-voxel floor (default 160000, and as many per cell "
-                    "on grids finer than 3x3x3: 160000 x cells / 27, at most 4 M)");
-    cmd->add_option("--paths", o->paths, "Paths per training sample (default 32)");
-    cmd->add_option("--noisy-paths", o->noisyPaths,
-                    "Points whose target's relative standard error over their paths exceeds 0.15 get this many times the "
-                    "paths (default 4; 1: off, which takes the glossy box from relMSE 0.0037 to 0.0085 and makes bakes 1.3-1.6x faster)");
-    cmd->add_option("--nee", o->nee,
-                    "Light selection of the training paths: power (default), uniform, or learned (a selection network "
-                    "trained on warm-up paths from the training points first)")
-        ->transform(CLI::CheckedTransformer(neeModes(), CLI::ignore_case));
-    cmd->add_option("--max-depth", o->maxDepth,
-                    "Path length in segments for training radiance; 0 = unbounded, with Russian roulette (default 0: "
-                    "the full light transport; a length cuts off the light of longer paths, a bias validate reports)");
-    cmd->add_option("--hidden", o->hidden, "Hidden layer widths, comma-separated (default 9)");
-    cmd->add_option("--epochs", o->epochs, "Maximum training epochs per voxel (default 1500)");
-    cmd->add_option("--batch-size", o->batch, "Mini-batch size (default 32)");
-    cmd->add_option("--patience", o->patience, "Stop a voxel after this many epochs without a better held-out error (default 300)");
-    cmd->add_option("--learning-rate", o->learningRate, "Adam learning rate at the start (default 0.01)");
-    cmd->add_option("--loss", o->loss, "l2, relative-l2 (default) or log-l2");
-    cmd->add_option("--encoding", o->encoding, "Weight encoding: fp16 (default) or fp32");
-    cmd->add_option("--min-samples-per-voxel", o->minSamples, "Floor of samples for a voxel with surface (default 64)");
-    cmd->add_option("--training", o->training,
-                    "monte-carlo (default: each target from --paths full paths) or integral (within the integral equation: "
-                    "a short Monte Carlo start of --points points, default 1,500 per voxel, and --paths paths, default 4, then "
-                    "rounds of fresh points whose targets are --bounces bounces with the networks for the rest of the path; "
-                    "docs/training.md)");
-    cmd->add_option("--generations", o->integral.generations, "Integral training: rounds after the Monte Carlo start (default 8)");
-    cmd->add_option("--generation-points", o->integral.points, "Integral training: fresh points per round (default 2,000 per network, at least 50,000)");
-    cmd->add_option("--generation-paths", o->integral.paths, "Integral training: target estimates per point in a round (default 2)");
-    cmd->add_option("--generation-epochs", o->integral.epochs, "Integral training: passes over each round's samples (default 4)");
-    cmd->add_option("--generation-lr", o->generationLr, "Integral training: learning rate of the first and the last round (default 0.01,0.0005)");
-    cmd->add_option("--average-decay", o->integral.averageDecay, "Integral training: per-step decay of the networks' moving average, 0 = none (default 0.99)");
-    cmd->add_option("--start-epochs", o->integral.startEpochs, "Integral training: at most this many epochs for the Monte Carlo start (default 1000)");
-    cmd->add_option("--start-restarts", o->integral.startRestarts,
-                    "Integral training: initialisations of each start network, the lowest held-out error kept (default 0: 4 with 32 "
-                    "rounds or more, else 1)");
-    cmd->add_option("--bounces", o->integral.bounces, "Integral training: bounces before the networks stand in (default 2)");
+    bakeSettingsTable(*o).addOptions(cmd);
     cmd->add_option("--save-generations", o->saveGenerations,
                     "Integral training: also write the asset after every round as PREFIX-gN.nrad (N = 0 is the Monte Carlo start)");
-    cmd->add_option("--weight-decay", o->weightDecay,
-                    "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training "
-                    "samples; 0 = unregularised (default " + joinFloats(defaults().train.weightDecays) + ")");
-    cmd->add_option("--blend-band", o->blendBand,
-                    "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; "
-                    "0 = none (default 0.0625)");
-    cmd->add_option("--budget", o->budget,
-                    "Asset size in bytes (suffix K or M, 1024-based): an adaptive kd-tree partition refined where it "
-                    "reduces the expected error most per byte, instead of the uniform --grid (docs/usage.md)");
-    cmd->add_option("--levels", o->levels, "With --budget: the finest cell is 2^-levels of the scene's longest axis (default 7)");
-    cmd->add_option("--min-leaf-samples", o->minLeafSamples,
-                    "With --budget: training samples a leaf with surface keeps at least (default 256)");
-    cmd->add_option("--seed", o->seed, "Seed (sampling, split, initialisation, order)");
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
-    cmd->add_option("--config", o->config, "JSON file of bake settings (keys as the flags, with underscores); flags win");
+    cmd->add_option("--config", o->config,
+                    "JSON file of bake settings (keys as the flags, with underscores, \"--no-X\" as \"X\": false); flags win");
+    cmd->add_flag("--dump-config", o->dumpConfig,
+                  "Print every setting as --config reads it (the file's and the flags' values, the rest at their defaults) and "
+                  "exit without baking");
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
-    addImportOptions(cmd, o->importLimits);
-    cmd->add_flag("--no-metadata", o->noMetadata, "Leave out the asset's JSON metadata section");
-    cmd->add_flag("--no-wall-splits", o->noWallSplits,
-                  "Without --budget: keep the grid's cells whole where a wall divides one (by default such a cell is split at "
-                  "the wall, so that no network holds a lit and a dark room; docs/usage.md)");
-    cmd->add_flag("--no-demodulate", o->noDemodulate,
-                  "Networks learn the scattered radiance itself, not divided by the surface's reflectance");
-    addLightingOptions(cmd, o->lighting);
     cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
     return [o, cmd]() { return runBake(*o, cmd); };
 }

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "baker/cmd/settings_table.h"
 #include "baker/scene/gltf_loader.h"
 #include "baker/scene/scene.h"
 
@@ -25,6 +26,7 @@ enum ExitCode : int {
 int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene, const ImportLimits& limits = {});
 // --max-texture-pixels and --max-triangles: what one scene may ask of the machine (ImportLimits).
 void addImportOptions(CLI::App* cmd, ImportLimits& limits);
+void addImportSettings(SettingsTable& t, ImportLimits& limits);  // the same, as rows of a command's settings
 
 // Every output a command will write, checked before any work (a typo in -o must cost a second, not a bake):
 // prints "nrad COMMAND: PATH: why" and returns kExitUsage for a file output that names a folder (or a folder
@@ -62,6 +64,7 @@ struct LightingOptions {
     std::string runtimeDirect;  // empty: the asset holds every light's scattered light
 };
 void addLightingOptions(CLI::App* cmd, LightingOptions& o);
+void addLightingSettings(SettingsTable& t, LightingOptions& o);  // the same, as rows of a command's settings
 // The names of the lighting flags (for `given` tests) and their config keys.
 bool lightingFlagsGiven(CLI::App* cmd);
 

@@ -44,14 +44,19 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
     return kExitOk;
 }
 
+void addImportSettings(SettingsTable& t, ImportLimits& limits) {
+    t.add("--max-texture-pixels", &limits.maxTexturePixels,
+          "Refuse a scene with an image of more pixels than this (8192 x 8192 by default), read from its header before decoding")
+        .checkedBy([](CLI::Option* p) { p->check(CLI::Range(uint64_t(1), uint64_t(1) << 40)); });
+    t.add("--max-triangles", &limits.maxTriangles,
+          "Refuse a scene that flattens to more triangles than this, every mesh instance counted")
+        .checkedBy([](CLI::Option* p) { p->check(CLI::Range(uint64_t(1), uint64_t(1) << 31)); });
+}
+
 void addImportOptions(CLI::App* cmd, ImportLimits& limits) {
-    cmd->add_option("--max-texture-pixels", limits.maxTexturePixels,
-                    "Refuse a scene with an image of more pixels than this, read from its header before decoding "
-                    "(default 67108864 = 8192 x 8192)")
-        ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
-    cmd->add_option("--max-triangles", limits.maxTriangles,
-                    "Refuse a scene that flattens to more triangles than this, every mesh instance counted (default 50000000)")
-        ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31));
+    SettingsTable t;
+    addImportSettings(t, limits);
+    t.addOptions(cmd);
 }
 
 int checkOutputsForCommand(const char* command, const std::vector<std::string>& files, const std::vector<std::string>& folders) {
@@ -184,25 +189,31 @@ int applyViewForCommand(const char* command, const ViewOptions& o, Camera& camer
     return kExitOk;
 }
 
+void addLightingSettings(SettingsTable& t, LightingOptions& o) {
+    t.add("--environment", &o.environment,
+          "Light from outside the scene: none, a constant sky radiance r,g,b, or an equirectangular HDR map (.exr or .hdr). "
+          "Not given: the scene's own lights; a scene without any gets the default sky (1,1,1)");
+    t.add("--environment-intensity", &o.intensity, "Multiplies the environment")
+        .checkedBy([](CLI::Option* p) { p->check(finiteRange(0.0, 1e30)); });
+    t.add("--environment-rotation", &o.rotationDegrees,
+          "Rotates the environment map about +Y, degrees counter-clockwise seen from above")
+        .checkedBy([](CLI::Option* p) { p->check(finiteRange(-1e6, 1e6)); });
+    t.add("--sun", &o.sun, "Adds a sun: x,y,z the direction towards it (world space, +Y up)");
+    t.add("--sun-illuminance", &o.sunIlluminance, "The sun's illuminance in lux")
+        .checkedBy([](CLI::Option* p) { p->check(finiteRange(0.0, 1e12)); });
+    t.add("--sun-angle", &o.sunAngle,
+          "The sun's angular diameter in degrees for soft shadows, 0: sharp (0.53 is the real sun's)")
+        .checkedBy([](CLI::Option* p) { p->check(finiteRange(0.0, 30.0)); });
+    t.add("--runtime-direct", &o.runtimeDirect,
+          "Mixed lighting: lights whose direct light the engine draws at run time (the asset holds only their indirect "
+          "light): auto (every sharp punctual light and a sharp sun), none (bake it all), all (every punctual light and "
+          "the sun), sun, or comma-separated light names or indices");
+}
+
 void addLightingOptions(CLI::App* cmd, LightingOptions& o) {
-    cmd->add_option("--environment", o.environment,
-                    "Light from outside the scene: none, a constant sky radiance r,g,b, or an equirectangular HDR map "
-                    "(.exr or .hdr). Default: the scene's own lights; a scene without any gets the default sky (1,1,1)");
-    cmd->add_option("--environment-intensity", o.intensity, "Multiplies the environment (default 1)")
-        ->check(finiteRange(0.0, 1e30));
-    cmd->add_option("--environment-rotation", o.rotationDegrees,
-                    "Rotates the environment map about +Y, degrees counter-clockwise seen from above (default 0)")
-        ->check(finiteRange(-1e6, 1e6));
-    cmd->add_option("--sun", o.sun, "Adds a sun: x,y,z the direction towards it (world space, +Y up)");
-    cmd->add_option("--sun-illuminance", o.sunIlluminance, "The sun's illuminance in lux (default 100000)")
-        ->check(finiteRange(0.0, 1e12));
-    cmd->add_option("--sun-angle", o.sunAngle,
-                    "The sun's angular diameter in degrees for soft shadows (0.53 is the real sun's; default 0: sharp)")
-        ->check(finiteRange(0.0, 30.0));
-    cmd->add_option("--runtime-direct", o.runtimeDirect,
-                    "Mixed lighting: lights whose direct light the engine draws at run time (the asset holds only their "
-                    "indirect light): auto (every sharp punctual light and a sharp sun; bake's default), none (bake it "
-                    "all), all (every punctual light and the sun), sun, or comma-separated light names or indices");
+    SettingsTable t;
+    addLightingSettings(t, o);
+    t.addOptions(cmd);
 }
 
 bool lightingFlagsGiven(CLI::App* cmd) {

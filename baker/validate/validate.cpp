@@ -531,7 +531,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     // 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
     if (settings.baseline) {
         auto t0 = clock_type::now();
-        SampleSettings ss;
+        SampleSettings ss = defaultBakeSamples();  // a bake's at the defaults
         glm::uvec3 dims(info.gridDims[0], info.gridDims[1], info.gridDims[2]);  // the sampling grid (its floor)
         const nlohmann::json& bake = r.assetMetadata.is_object() ? r.assetMetadata.value("bake", nlohmann::json()) : nlohmann::json();
         if (bake.is_object()) {
@@ -548,7 +548,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
                 // Trained within the integral equation: its own samples are one-bounce targets against its
                 // networks, of no use to probes, and its start's few paths would handicap them. The probes get
                 // what a Monte Carlo bake at the defaults would have given them.
-                const SampleSettings defaults;
+                const SampleSettings defaults = defaultBakeSamples();
                 ss.points = defaults.points;
                 ss.paths = defaults.paths;
                 ss.maxDepth = 0;

@@ -26,6 +26,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "baker/bake/baker.h"
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_samples.h"
 #include "baker/bake/voxel_grid.h"
@@ -199,7 +200,7 @@ Score evaluate(const std::vector<TrainingSample>& all, const std::vector<Cell>& 
 
 int main(int argc, char** argv) {
     std::string scenePath = std::string(NRAD_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.gltf";
-    SampleSettings ss;
+    SampleSettings ss = defaultBakeSamples();
     std::vector<size_t> budgets = {27, 64};
     int threads = 0;
     bool byError = false, scaleSamples = false;

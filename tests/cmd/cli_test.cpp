@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -241,28 +242,72 @@ TEST(CliBake, ConfigFileAndFlagsThatOverrideIt) {
     EXPECT_FALSE(fs::exists(dir + "/b.nrad"));
 }
 
-// Every flag of `nrad bake` that is a setting (all but where output goes, how it runs and its help) is a key of
-// --config, "--no-X" as "X": false; a key that no line reads is refused, so the two cannot drift apart.
-TEST(CliBake, EverySettingFlagIsAConfigKey) {
+// `nrad bake --dump-config`: the settings as --config reads them, or the error.
+nlohmann::json dumpedConfig(const std::string& args) {
+    const RunResult r = run("bake " + cornell() + " -o unused.nrad --dump-config " + args);
+    EXPECT_EQ(r.exitCode, 0) << args << ": " << r.output;
+    return nlohmann::json::parse(r.output, nullptr, false);
+}
+
+// Every setting of `nrad bake` (its settings table, as --dump-config lists it) is a flag of its help and a key of
+// --config, and a value given either way reaches the same setting and only it; a key that the table lacks is
+// refused, and every flag of the help but those that say where output goes and how the bake runs is a setting.
+TEST(CliBake, EverySettingRoundTripsThroughConfig) {
+    // A value other than the default for every setting: a setting added without one here fails the test.
+    const nlohmann::json examples = nlohmann::json::parse(R"({
+        "grid": "2x1x1", "points": 300, "paths": 2, "noisy_paths": 1, "nee": "uniform", "max_depth": 6, "hidden": "16,16",
+        "epochs": 10, "batch_size": 64, "patience": 50, "learning_rate": 0.02, "loss": "l2", "encoding": "fp32",
+        "min_samples_per_voxel": 32, "training": "integral", "generations": 3, "generation_points": 1000,
+        "generation_paths": 4, "generation_epochs": 2, "generation_lr": "0.02,0.001", "average_decay": 0.5,
+        "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "blend_band": 0.125,
+        "budget": "64K", "levels": 5, "min_leaf_samples": 64, "seed": 7, "max_texture_pixels": 1000, "max_triangles": 1000,
+        "metadata": false, "wall_splits": false, "demodulate": false, "environment": "0.5,0.5,0.5",
+        "environment_intensity": 2, "environment_rotation": 90, "sun": "0,1,0", "sun_illuminance": 5000, "sun_angle": 0.53,
+        "runtime_direct": "none"})");
+    const nlohmann::json defaults = dumpedConfig("");
+    ASSERT_TRUE(defaults.is_object());
     const RunResult help = run("bake --help");
     ASSERT_EQ(help.exitCode, 0) << help.output;
-    std::set<std::string> flags;
-    for (size_t at = help.output.find("--"); at != std::string::npos; at = help.output.find("--", at + 2)) {
-        size_t end = at + 2;
-        while (end < help.output.size() && (std::islower(static_cast<unsigned char>(help.output[end])) || help.output[end] == '-')) ++end;
-        if (end > at + 2) flags.insert(help.output.substr(at, end - at));
-    }
-    for (const char* notSetting : {"--help", "--output", "--config", "--stats", "--threads", "--quiet", "--save-generations"})
-        flags.erase(notSetting);
-    ASSERT_GE(flags.size(), 40u);
+    std::set<std::string> helpFlags;  // the long names of the options' column: lines that start with a dash
+    std::istringstream lines(help.output);
+    for (std::string line, names; std::getline(lines, line);)
+        if (std::istringstream(line) >> names && names[0] == '-')
+            for (const std::string& name : {names.substr(0, names.find(',')), names.substr(names.find(',') + 1)})
+                if (name.compare(0, 2, "--") == 0) helpFlags.insert(name);
+    for (const char* notSetting : {"--help", "--output", "--config", "--dump-config", "--stats", "--threads", "--quiet", "--save-generations"})
+        helpFlags.erase(notSetting);
     const std::string dir = test::temporaryDirectory();
-    for (const std::string& flag : flags) {
-        std::string key = flag.substr(flag.compare(0, 5, "--no-") == 0 ? 5 : 2);
-        for (char& c : key) c = c == '-' ? '_' : c;
-        std::ofstream(dir + "/one.json") << "{\"" << key << "\": null}";
-        const RunResult r = run("bake " + cornell() + " -o '" + dir + "/x.nrad' --config '" + dir + "/one.json' -q");
-        EXPECT_EQ(r.exitCode, 3) << flag << ": " << r.output;  // null is no value of any setting
-        EXPECT_EQ(r.output.find("unknown key"), std::string::npos) << flag << " has no --config key '" << key << "': " << r.output;
+    std::set<std::string> tableFlags;
+    for (const auto& [key, example] : examples.items()) {
+        std::string flag = "--" + key;
+        for (char& c : flag) c = c == '_' ? '-' : c;
+        if (example.is_boolean()) flag = "--no-" + flag.substr(2);  // every flag of the table turns a default off
+        tableFlags.insert(flag);
+        const nlohmann::json byFlag = dumpedConfig(example.is_boolean() ? flag : flag + " " + (example.is_string() ? example.get<std::string>() : example.dump()));
+        std::ofstream(dir + "/one.json") << nlohmann::json{{key, example}}.dump();
+        const nlohmann::json byKey = dumpedConfig("--config '" + dir + "/one.json'");
+        EXPECT_EQ(byFlag, byKey) << key;
+        EXPECT_EQ(byKey.value(key, nlohmann::json()), example) << key;
+        nlohmann::json others = byKey;
+        others.erase(key);
+        nlohmann::json otherDefaults = defaults;
+        otherDefaults.erase(key);
+        EXPECT_EQ(others, otherDefaults) << key << " changed another setting";
+    }
+    for (const auto& [key, value] : defaults.items()) EXPECT_TRUE(examples.contains(key)) << key << " has no example in this test";
+    EXPECT_EQ(helpFlags, tableFlags);
+    // The dump is a config file that gives the same settings back.
+    const nlohmann::json some = dumpedConfig("--grid 4 --nee learned --no-demodulate --sun 1,1,0 --budget 1M");
+    std::ofstream(dir + "/all.json") << some.dump();
+    EXPECT_EQ(dumpedConfig("--config '" + dir + "/all.json'"), some);
+    // A key no setting has, and a value its flag would refuse, name the key (exit 3).
+    for (const char* bad : {R"({"colour": "red"})", R"({"nee": "best"})", R"({"epochs": "many"})", R"({"sun_angle": 45})",
+                            R"({"metadata": "no"})", R"({"points": null})"}) {
+        std::ofstream(dir + "/bad.json") << bad;
+        const RunResult r = run("bake " + cornell() + " -o '" + dir + "/x.nrad' --config '" + dir + "/bad.json' -q");
+        EXPECT_EQ(r.exitCode, 3) << bad << ": " << r.output;
+        const std::string key = nlohmann::json::parse(bad).begin().key();
+        EXPECT_NE(r.output.find(key), std::string::npos) << bad << ": " << r.output;
     }
     EXPECT_FALSE(fs::exists(dir + "/x.nrad"));
     // The keys added with this test do what their flags do.
@@ -279,7 +324,7 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
     std::string dir = test::temporaryDirectory();
     std::string out = " -o '" + dir + "/x.nrad' -q";
     for (const char* flags : {"--grid 0", "--grid 2x2", "--grid 3x3x999", "--hidden 0", "--hidden 9,x", "--loss huber",
-                              "--encoding fp8", "--points 0", "--epochs 0", "--learning-rate -1", "--no-such-flag",
+                              "--encoding fp8", "--points -1", "--epochs 0", "--learning-rate -1", "--no-such-flag",
                               "--budget 12Q", "--budget -5", "--budget 0", "--budget 300", "--budget 8K --levels 11",
                               "--budget 8K --min-leaf-samples 2", "--training td", "--training integral --bounces 0",
                               "--training integral --bounces 9", "--training integral --generation-epochs 0",

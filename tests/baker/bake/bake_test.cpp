@@ -44,6 +44,37 @@ BakeSettings smallSettings() {
     return s;
 }
 
+// Points and paths left at 0 are chosen from the other settings, the same for `nrad bake` and a library caller.
+TEST(Bake, AutomaticPointsAndPathsFollowTheOtherSettings) {
+    BakeSettings s;
+    EXPECT_EQ(s.samples.points, 0u);
+    EXPECT_EQ(s.samples.paths, 0u);
+    BakeSettings r = resolvedBakeSettings(s);
+    EXPECT_EQ(r.samples.points, 160000u);  // the 3x3x3 grid's
+    EXPECT_EQ(r.samples.paths, 32u);
+    s.grid = glm::uvec3(6, 6, 3);
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 160000u * 108 / 27);  // the same density per cell
+    s.grid = glm::uvec3(2);
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 160000u);  // never fewer
+    s.training = TrainingMethod::Integral;
+    s.grid = glm::uvec3(4);
+    r = resolvedBakeSettings(s);
+    EXPECT_EQ(r.samples.points, 1500u * 64);
+    EXPECT_EQ(r.samples.paths, 4u);
+    s.grid = glm::uvec3(2);
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 40000u);
+    s.training = TrainingMethod::MonteCarlo;
+    s.partition.budgetBytes = 256 << 10;  // 9-9-3 in fp16: 120 x 2 + 40 bytes a network, 936 of them
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 936u * 1500);
+    s.partition.budgetBytes = 1 << 20;
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 4000000u);  // the cap
+    s.samples.points = 1234;  // given: kept
+    s.samples.paths = 7;
+    r = resolvedBakeSettings(s);
+    EXPECT_EQ(r.samples.points, 1234u);
+    EXPECT_EQ(r.samples.paths, 7u);
+}
+
 TEST(Bake, CornellBoxSmall) {
     Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
     BakeSettings s = smallSettings();
