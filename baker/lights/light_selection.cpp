@@ -1,4 +1,4 @@
-// Uniform and learned light selection; the selection network's forward and backward passes and training.
+// Light selection by power, uniform and learned; the selection network's forward and backward passes and training.
 #include "baker/lights/light_selection.h"
 
 #include <algorithm>
@@ -54,7 +54,25 @@ void LightSelector::networkDistribution(const glm::vec3& p, const glm::vec3& ns,
     maskedSoftmax(a.logits, lights_.groupCount(), mask, probs);
 }
 
-LightSample LightSelector::sample(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const {
+LightChoice LightSelector::sample(const LightSampleContext& ctx, glm::vec2 u, float* probs, NeeRecord* record) const {
+    LightChoice c;
+    if (choosesGroups()) {
+        c.networkEvaluated = distribution(ctx, probs, record);
+        c.ls = sampleGroups(probs, u, ctx.p, c.group);
+    } else if (!lights_.empty()) {
+        c.ls = lights_.sample(ctx.p, u);
+    }
+    return c;
+}
+
+float LightSelector::pdfTriangle(const float* probs, uint32_t triangle, const glm::vec3& from, const glm::vec3& pLight,
+                                 const glm::vec3& nLight) const {
+    if (!choosesGroups()) return lights_.pdfTriangle(triangle, from, pLight, nLight);
+    const int32_t g = lights_.groupOfTriangle(triangle);
+    return g < 0 ? 0.0f : probs[g] * lights_.pdfTriangleInGroup(triangle, from, pLight, nLight);
+}
+
+LightSample LightSelector::sampleGroups(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const {
     const size_t groups = lights_.groupCount();
     chosen = -1;
     float acc = 0.0f, before = 0.0f;
@@ -73,8 +91,9 @@ LightSample LightSelector::sample(const float* probs, glm::vec2 u, const glm::ve
     return ls;
 }
 
-bool LightSelector::distribution(const glm::vec3& p, const glm::vec3& ng, const glm::vec3& ns, const glm::vec3& wo,
-                                 int depth, float* probs, NeeRecord* record) const {
+bool LightSelector::distribution(const LightSampleContext& ctx, float* probs, NeeRecord* record) const {
+    const glm::vec3 &p = ctx.p, &ng = ctx.ng, &ns = ctx.ns, &wo = ctx.wo;
+    const int depth = ctx.depth;
     const size_t G = lights_.groupCount();
     if (settings_.mode != NeeMode::Learned) {
         for (size_t g = 0; g < G; ++g) probs[g] = 1.0f / float(G);

@@ -70,6 +70,22 @@ struct NeeRecord {
 using NeeNetwork = PaddedMlp;
 static_assert(PaddedMlp::kMaxOutputs == int(LightSampler::kMaxLightGroups));
 
+// A vertex where next event estimation chooses a light (pbrt's LightSampleContext): its position, geometric
+// normal ng and shading normal ns on the side of wo, and its index along the path (0 = the first hit).
+struct LightSampleContext {
+    glm::vec3 p{0.0f}, ng{0.0f}, ns{0.0f}, wo{0.0f};  // ng = 0: no tangent-plane culling (lit from behind too)
+    int depth = 0;
+};
+
+// What LightSelector::sample chose at a vertex.
+struct LightChoice {
+    LightSample ls;  // its pdf includes the probability of the choice
+    int group = -1;  // the group chosen from the distribution (-1: chosen by power, or no group has probability)
+    bool networkEvaluated = false;  // the selection network gave the distribution (then `record` holds its input)
+};
+
+// The one interface of light selection, for every mode: the light sample at a vertex, and the pdfs with which
+// it would have produced a light that a BSDF sample from that vertex reached (for multiple importance sampling).
 class LightSelector {
 public:
     LightSelector(const LightSampler& lights, const Bounds3& sceneBounds, const NeeSettings& settings);
@@ -78,18 +94,28 @@ public:
     const NeeSettings& settings() const { return settings_; }
     size_t groupCount() const { return lights_.groupCount(); }
     const LightSampler& lights() const { return lights_; }
+    // Whether a choice is a distribution over the light groups (uniform and learned), which the caller keeps for
+    // the next vertex's pdfs (kMaxLightGroups floats a vertex); power mode chooses from the whole list by power.
+    bool choosesGroups() const { return settings_.mode != NeeMode::Power && lights_.groupCount() > 0; }
 
-    // Selection probability of every group at a vertex (p, geometric normal ng and shading normal ns on the
-    // side of wo) into probs[0, groupCount). Returns true if the network was evaluated; then `record` (if
-    // given) holds its input and candidates for the caller to complete.
-    // depth: the vertex's index along the path (0 = first hit).
-    bool distribution(const glm::vec3& p, const glm::vec3& ng, const glm::vec3& ns, const glm::vec3& wo, int depth,
-                      float* probs, NeeRecord* record) const;
-    // Next event estimation's light sample from the group distribution `probs` (from distribution()): u.x
-    // picks the group by inverting the CDF of probs and, rescaled within the chosen group's share, is reused
-    // for the point on it (so stratified picks stay stratified over the lights). The pdf includes the group's
-    // probability. chosen: the group, -1 if none has probability.
-    LightSample sample(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const;
+    // Next event estimation's light sample at ctx. By power: LightSampler::sample. Else a group from
+    // distribution() (into probs): u.x picks the group by inverting the CDF of probs and, rescaled within the
+    // chosen group's share, is reused for the point on it (so stratified picks stay stratified over the lights).
+    LightChoice sample(const LightSampleContext& ctx, glm::vec2 u, float* probs, NeeRecord* record) const;
+    // The solid-angle pdf with which sample() at the vertex `from` (its distribution in probs) gives point pLight
+    // (normal nLight) of emissive triangle `triangle`.
+    float pdfTriangle(const float* probs, uint32_t triangle, const glm::vec3& from, const glm::vec3& pLight,
+                      const glm::vec3& nLight) const;
+    // The same for light arriving from outside the scene along a direction, from LightSampler::forEachEscaped's
+    // pdf (of the whole list) and group pdf.
+    float pdfEscaped(const float* probs, float pdf, uint32_t group, float pdfInGroup) const {
+        return choosesGroups() ? probs[group] * pdfInGroup : pdf;
+    }
+
+    // Selection probability of every group at ctx into probs[0, groupCount) (uniform and learned modes). Returns
+    // true if the network was evaluated; then `record` (if given) holds its input and candidates for the caller
+    // to complete.
+    bool distribution(const LightSampleContext& ctx, float* probs, NeeRecord* record) const;
 
     // One training step on a round's records (learned mode with train = true; otherwise nothing). Records
     // with zero weight carry no gradient and are skipped; at most trainBatches x 64 are used, spread evenly.
@@ -107,6 +133,7 @@ public:
     void setTraining(bool on) { settings_.train = on; }
 
 private:
+    LightSample sampleGroups(const float* probs, glm::vec2 u, const glm::vec3& p, int& chosen) const;
     void quantize(float* probs, size_t G, uint64_t mask, int count) const;
     void input(const glm::vec3& p, const glm::vec3& ns, const glm::vec3& wo, float* x) const;
 

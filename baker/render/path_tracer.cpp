@@ -182,13 +182,7 @@ PathTracer::Next PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDe
         if (depth == 0) {
             if (cutDepth == 0) p.L += p.beta * si.emission;  // scatteredRadiance leaves out si's own
         } else {
-            float lightPdf;
-            if (selector_) {
-                int32_t g = lights_.groupOfTriangle(si.triangle);
-                lightPdf = g < 0 ? 0.0f : p.prevProbs[g] * lights_.pdfTriangleInGroup(si.triangle, p.prevP, si.p, si.ng);
-            } else {
-                lightPdf = lights_.pdfTriangle(si.triangle, p.prevP, si.p, si.ng);
-            }
+            const float lightPdf = selector_->pdfTriangle(p.prevProbs, si.triangle, p.prevP, si.p, si.ng);
             p.L += p.beta * si.emission * powerHeuristic(p.prevBsdfPdf, lightPdf);
         }
     }
@@ -221,18 +215,16 @@ PathTracer::Next PathTracer::scatterBegin(Path& p, const glm::vec2* u, int maxDe
     p.recordHere = false;
     p.chosen = -1;
     // (A quad light is an area light, never one the engine draws: excludeEngineDrawn_ leaves its samples as they are.)
-    if (quad && !selector_ && si.bsdf.transmission == 0.0f && lights_.pickQuad(uLight, *quad)) return kQuadLanes;
+    // (Lanes only for a choice by power: a group distribution's pick is made one path at a time.)
+    if (quad && !selector_->choosesGroups() && si.bsdf.transmission == 0.0f && lights_.pickQuad(uLight, *quad)) return kQuadLanes;
+    // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
+    const LightSampleContext ctx{si.p, p.transmits ? glm::vec3(0.0f) : si.ng, si.ns, si.wo, depth};
+    const LightChoice choice = selector_->sample(ctx, uLight, p.probs, &p.neeRecord);
     LightSample& ls = p.ls;
-    ls = LightSample{};
-    if (selector_ && lights_.groupCount() > 0) {
-        // A transmissive surface is lit from behind its plane too: no tangent-plane culling (ng = 0).
-        const glm::vec3 cullNormal = p.transmits ? glm::vec3(0.0f) : si.ng;
-        p.recordHere = selector_->distribution(si.p, cullNormal, si.ns, si.wo, depth, p.probs, &p.neeRecord) && nee && nee->records;
-        ls = selector_->sample(p.probs, uLight, si.p, p.chosen);
-        if (depth == 0 && nee) nee->firstLight = p.chosen;
-    } else if (!lights_.empty()) {
-        ls = lights_.sample(si.p, uLight);
-    }
+    ls = choice.ls;
+    p.chosen = choice.group;
+    p.recordHere = choice.networkEvaluated && nee && nee->records;
+    if (depth == 0 && nee) nee->firstLight = p.chosen;
     // Mixed lighting: the engine adds the direct light of its own lights itself.
     if (excludeEngineDrawn_ && depth == 0 && lights_.engineDrawn(ls.entry)) ls.pdf = 0.0f;
     p.neeCandidate = ls.pdf > 0.0f && !isBlack(ls.Li) && sameSideRule(si, p.transmits, ls.wi);
@@ -310,7 +302,7 @@ bool PathTracer::arrive(Path& p, const Hit& hit) const {
         // The ray leaves the scene: the environment and soft suns it meets, each weighted against having been
         // sampled by NEE at the vertex it left.
         lights_.forEachEscaped(p.extension.direction, [&](const glm::vec3& Le, float pdf, uint32_t group, float pdfInGroup) {
-            float lightPdf = selector_ ? p.prevProbs[group] * pdfInGroup : pdf;
+            const float lightPdf = selector_->pdfEscaped(p.prevProbs, pdf, group, pdfInGroup);
             p.L += p.beta * Le * powerHeuristic(p.prevBsdfPdf, lightPdf);
         });
         return false;
@@ -525,7 +517,7 @@ void PathTracer::traceBatch(Path* paths, size_t n, int maxDepth, RayCounters& co
 void PathTracer::estimate(const PathStart* starts, size_t n, int maxDepth, const ScatteredRadiance* tail, int bounces,
                           RayCounters& counters, glm::vec3* out) const {
     constexpr size_t kBatch = size_t(kBatchSize);
-    const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
+    const size_t probsPerPath = selector_->choosesGroups() ? 2 * LightSampler::kMaxLightGroups : 0;
     // The buffers of this thread, kept from call to call (bakes call this for every range of a few hundred paths);
     // the paths point into `samplers`, which never grows past its reserve.
     struct EstimateBuffers {
@@ -585,7 +577,7 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
     const bool uniformSky = skyIsUniform(scene_);
     const glm::vec3 uniformSkyRadiance = uniformSky ? skyRadiance(scene_, glm::vec3(0.0f, 0.0f, 1.0f)) : glm::vec3(0.0f);
     const size_t batch = size_t(std::max(1, settings.batchSize));
-    const size_t probsPerPath = selector_ ? 2 * LightSampler::kMaxLightGroups : 0;
+    const size_t probsPerPath = selector_->choosesGroups() ? 2 * LightSampler::kMaxLightGroups : 0;
 
     // The batched tracer's buffers: one set per worker thread for the whole render (every range is one tile, and
     // buffers made per range were made, and their paths constructed, 64 times for a 128 x 128 image).

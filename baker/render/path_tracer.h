@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -93,13 +94,12 @@ void shadowRay(const SurfaceInteraction& si, const LightSample& ls, glm::vec3& o
 
 class PathTracer {
 public:
-    // selector: light selection for NEE; nullptr (or power mode) picks lights by power.
+    // selector: light selection for NEE; nullptr picks lights by power.
     PathTracer(const Scene& scene, const Accel& accel, const LightSampler& lights,
                const LightSelector* selector = nullptr)
         : scene_(scene), accel_(accel), lights_(lights),
-          selector_(selector && selector->mode() != NeeMode::Power ? selector : nullptr) {}
-
-    const LightSelector* selector() const { return selector_; }
+          powerSelector_(selector ? nullptr : std::make_shared<const LightSelector>(lights, scene.bounds, NeeSettings{})),
+          selector_(selector ? selector : powerSelector_.get()) {}
 
     // Mixed lighting: leave out the direct light (next event estimation at the first vertex) of the lights the
     // engine draws at run time (PunctualLight::runtimeDirect), so estimates hold only their indirect light.
@@ -190,6 +190,7 @@ private:
     const Scene& scene_;
     const Accel& accel_;
     const LightSampler& lights_;
+    std::shared_ptr<const LightSelector> powerSelector_;  // without a selector of the caller's
     const LightSelector* selector_;
     float rouletteThreshold_ = 1.0f;
     bool excludeEngineDrawn_ = false;

@@ -373,7 +373,7 @@ TEST(LearnedNee, LearnsTheVisibleLightsOfEachRoom) {
                 selector->networkDistribution(p, nrm, wo, selector->candidates(p, nrm), probs);
                 // What is sampled: whole units of 1/64, at least one per candidate, adding up to one.
                 float used[LightSampler::kMaxLightGroups];
-                ASSERT_TRUE(selector->distribution(p, nrm, nrm, wo, 0, used, nullptr));
+                ASSERT_TRUE(selector->distribution(LightSampleContext{p, nrm, nrm, wo, 0}, used, nullptr));
                 uint64_t cand = selector->candidates(p, nrm);
                 int unitSum = 0;
                 for (size_t g = 0; g < rig.lights.groupCount(); ++g) {
