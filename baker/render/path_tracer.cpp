@@ -560,6 +560,186 @@ bool PathTracer::viewable(const SurfaceInteraction& si) const {
     return m.doubleSided || seeThrough || glm::dot(hit.ng, si.wo) <= 0.0f;
 }
 
+// One render's tiles: each a tile of the image, one path at a time (plain) or in batches of paths (batched).
+struct PathTracer::TileRender {
+    const PathTracer& tracer;
+    const RenderSettings& settings;
+    const CameraRays& rays;
+    Image& image;
+    const size_t batch, probsPerPath;
+    // What a camera ray that leaves the scene sees, computed once where it is the same in every direction.
+    const bool uniformSky;
+    const glm::vec3 uniformSkyRadiance;
+
+    // A batch's camera rays, traced (and their hits' texels asked for) one batch ahead of its paths, so that the
+    // memory system fetches a batch's texels while the previous batch's paths are traced.
+    struct CameraBatch {
+        std::vector<Sampler> samplers;
+        std::vector<uint32_t> pixelOf;  // per path: its pixel in the tile
+        std::vector<RayQuery> rays;
+        std::vector<Hit> hits;
+    };
+    // The batched tracer's buffers: one set per worker thread for the whole render (every range is one tile, and
+    // buffers made per range were made, and their paths constructed, 64 times for a 128 x 128 image).
+    struct Buffers {
+        std::vector<uint32_t> streams;
+        std::vector<int> pixelX, pixelY;  // of the tile's pixels
+        std::vector<glm::dvec3> sums;
+        CameraBatch cameraBatches[2];
+        std::vector<Sampler*> samplerOf;
+        std::vector<glm::vec2> jitters;
+        std::vector<float> rasterX, rasterY;
+        std::vector<Path> paths;
+        std::vector<uint32_t> pathOf;  // per camera ray: its path, or UINT32_MAX where it saw the sky
+        std::vector<float> probs;
+        BatchScratch scratch;
+    };
+
+    TileRender(const PathTracer& t, const RenderSettings& s, const CameraRays& r, Image& i)
+        : tracer(t), settings(s), rays(r), image(i), batch(size_t(std::max(1, s.batchSize))),
+          probsPerPath(t.selector_->choosesGroups() ? 2 * LightSampler::kMaxLightGroups : 0), uniformSky(skyIsUniform(t.scene_)),
+          uniformSkyRadiance(uniformSky ? skyRadiance(t.scene_, glm::vec3(0.0f, 0.0f, 1.0f)) : glm::vec3(0.0f)) {}
+
+    // The tile's pixels [x0, x1) x [y0, y1), one sample's path at a time.
+    void plain(int x0, int y0, int x1, int y1, RayCounters& counters) const {
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
+                glm::dvec3 sum(0.0);
+                for (int s = 0; s < settings.spp; ++s) {
+                    glm::vec3 o, d;
+                    Sampler sampler = cameraSample(rays, x, y, settings.seed, uint32_t(s), o, d);
+                    glm::vec3 L = tracer.radiance(o, d, sampler, settings.maxDepth, counters);
+                    if (isFinite(L))
+                        sum += glm::dvec3(L);
+                    else
+                        ++counters.nonFiniteSamples;
+                }
+                image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
+            }
+    }
+
+    // The tile's samples in batches, pixel by pixel: each pixel's samples are summed in the same order as plain().
+    // Path q is sample q % spp of pixel q / spp: a pixel's samples are consecutive paths of a batch, so the texels
+    // one sample's lookups bring into the cache serve the pixel's other samples (whose camera rays land within its
+    // footprint).
+    void batched(Buffers& b, int x0, int y0, int x1, int y1, RayCounters& counters) const {
+        b.probs.resize(probsPerPath * batch);
+        const size_t pixels = tilePixels(b, x0, y0, x1, y1);
+        const size_t count = pixels * spp();
+        if (count > 0) traceCameraRays(b, b.cameraBatches[0], 0, std::min(batch, count), counters);
+        for (size_t first = 0, k = 0; first < count; first += batch, ++k) {
+            const size_t m = std::min(batch, count - first);
+            CameraBatch& c = b.cameraBatches[k & 1];
+            const size_t next = first + batch;
+            if (next < count) traceCameraRays(b, b.cameraBatches[(k + 1) & 1], next, std::min(batch, count - next), counters);
+            // The texels again, now: the requests made a batch ahead do not all survive the previous batch
+            // (LightsPunctualLamp: 1-4% faster with both than with the early one alone).
+            prefetchHits(c, m);
+            tracer.traceBatch(b.paths.data(), startPaths(b, c, m), settings.maxDepth, counters, b.scratch);
+            addSamples(b, c, m, counters);
+        }
+        for (size_t i = 0; i < pixels; ++i) image.at(b.pixelX[i], b.pixelY[i]) = glm::vec3(b.sums[i] / double(std::max(1, settings.spp)));
+    }
+
+private:
+    size_t spp() const { return size_t(std::max(0, settings.spp)); }
+
+    // The tile's pixels, their sample streams and sums; returns their number.
+    size_t tilePixels(Buffers& b, int x0, int y0, int x1, int y1) const {
+        const int tw = x1 - x0;
+        const size_t pixels = size_t(tw) * size_t(y1 - y0);
+        b.streams.resize(pixels);
+        b.pixelX.resize(pixels);
+        b.pixelY.resize(pixels);
+        b.sums.assign(pixels, glm::dvec3(0.0));
+        for (size_t i = 0; i < pixels; ++i) {
+            b.pixelX[i] = x0 + int(i) % tw;
+            b.pixelY[i] = y0 + int(i) / tw;
+            b.streams[i] = pixelStream(uint32_t(b.pixelX[i]), uint32_t(b.pixelY[i]), settings.seed);
+        }
+        return pixels;
+    }
+
+    // Asks for the texels the interactions of a batch's camera hits will read.
+    void prefetchHits(const CameraBatch& c, size_t m) const {
+        if (!tracer.scene_.textures.empty())
+            for (size_t k = 0; k < m; ++k)
+                if (c.hits[k].valid()) prefetchInteraction(tracer.scene_, c.hits[k]);
+    }
+
+    // The camera rays of the batch of paths [first, first + m), traced, their hits' texels prefetched.
+    void traceCameraRays(Buffers& b, CameraBatch& c, size_t first, size_t m, RayCounters& counters) const {
+        c.samplers.clear();
+        c.rays.resize(m);
+        c.hits.resize(m);
+        c.pixelOf.resize(m);
+        b.samplerOf.resize(m);
+        b.jitters.resize(m);
+        // Each path's pixel and sample number, counted on from the batch's first path's.
+        for (size_t k = 0, pixel = first / spp(), sample = first % spp(); k < m; ++k) {
+            c.pixelOf[k] = uint32_t(pixel);
+            c.samplers.emplace_back(b.streams[pixel], uint32_t(sample));
+            if (++sample == spp()) {
+                sample = 0;
+                ++pixel;
+            }
+        }
+        for (size_t k = 0; k < m; ++k) b.samplerOf[k] = &c.samplers[k];
+        next2D(b.samplerOf.data(), m, 1, b.jitters.data());
+        b.rasterX.resize(m);
+        b.rasterY.resize(m);
+        for (size_t k = 0; k < m; ++k) {
+            b.rasterX[k] = float(b.pixelX[c.pixelOf[k]]) + b.jitters[k].x;
+            b.rasterY[k] = float(b.pixelY[c.pixelOf[k]]) + b.jitters[k].y;
+        }
+        rays.generate(b.rasterX.data(), b.rasterY.data(), m, c.rays.data());
+        counters.primary += m;
+        tracer.accel_.intersect(c.rays.data(), m, c.hits.data(), settings.coherentCameraRays);
+        prefetchHits(c, m);
+    }
+
+    // A path for every camera ray of the batch that hit the scene; returns their number.
+    size_t startPaths(Buffers& b, CameraBatch& c, size_t m) const {
+        if (b.paths.size() < m) b.paths.resize(m);  // constructed once, restarted by every batch
+        size_t started = 0;
+        b.pathOf.resize(m);
+        for (size_t k = 0; k < m; ++k) {
+            if (!c.hits[k].valid()) {
+                b.pathOf[k] = UINT32_MAX;
+                continue;
+            }
+            b.pathOf[k] = uint32_t(started);
+            Path& p = b.paths[started++];
+            p.restart(&c.samplers[k], probsPerPath > 0 ? b.probs.data() + probsPerPath * k : nullptr);
+            makeInteraction(tracer.scene_, c.hits[k], c.rays[k].direction, p.si);
+        }
+        return started;
+    }
+
+    // The batch's samples into their pixels' sums. A pixel's samples are a run of the batch: summed in a
+    // register, stored where the run ends (the same additions in the same order as into sums[] one by one).
+    void addSamples(Buffers& b, const CameraBatch& c, size_t m, RayCounters& counters) const {
+        uint32_t runPixel = c.pixelOf[0];
+        glm::dvec3 run = b.sums[runPixel];
+        for (size_t k = 0; k < m; ++k) {
+            if (c.pixelOf[k] != runPixel) {
+                b.sums[runPixel] = run;
+                runPixel = c.pixelOf[k];
+                run = b.sums[runPixel];
+            }
+            // The sky (and suns' disks) where the camera ray left the scene.
+            const glm::vec3 L = b.pathOf[k] != UINT32_MAX ? b.paths[b.pathOf[k]].L
+                                : uniformSky              ? uniformSkyRadiance
+                                                          : skyRadiance(tracer.scene_, c.rays[k].direction);
+            if (isFinite(L))
+                run += glm::dvec3(L);
+            else
+                ++counters.nonFiniteSamples;
+        }
+        b.sums[runPixel] = run;
+    }
+};
+
 Image PathTracer::render(const Camera& camera, const RenderSettings& settings, RenderStats* stats,
                          const std::function<void(double)>& progress) const {
     auto start = std::chrono::steady_clock::now();
@@ -571,173 +751,18 @@ Image PathTracer::render(const Camera& camera, const RenderSettings& settings, R
     std::mutex statsMutex;
     RayCounters total;
     std::atomic<int> tilesDone{0};
-
-    const bool batched = settings.batchSize > 1;
-    // What a camera ray that leaves the scene sees, computed once where it is the same in every direction.
-    const bool uniformSky = skyIsUniform(scene_);
-    const glm::vec3 uniformSkyRadiance = uniformSky ? skyRadiance(scene_, glm::vec3(0.0f, 0.0f, 1.0f)) : glm::vec3(0.0f);
-    const size_t batch = size_t(std::max(1, settings.batchSize));
-    const size_t probsPerPath = selector_->choosesGroups() ? 2 * LightSampler::kMaxLightGroups : 0;
-
-    // The batched tracer's buffers: one set per worker thread for the whole render (every range is one tile, and
-    // buffers made per range were made, and their paths constructed, 64 times for a 128 x 128 image).
-    struct CameraBatch {
-        std::vector<Sampler> samplers;
-        std::vector<uint32_t> pixelOf;  // per path: its pixel in the tile
-        std::vector<RayQuery> rays;
-        std::vector<Hit> hits;
-    };
-    struct TileBuffers {
-        std::vector<uint32_t> streams;
-        std::vector<int> pixelX, pixelY;  // of the tile's pixels
-        std::vector<glm::dvec3> sums;
-        // A batch's camera rays, traced (and their hits' texels asked for) one batch ahead of its paths, so that
-        // the memory system fetches a batch's texels while the previous batch's paths are traced.
-        CameraBatch cameraBatches[2];
-        std::vector<Sampler*> samplerOf;
-        std::vector<glm::vec2> jitters;
-        std::vector<float> rasterX, rasterY;
-        std::vector<Path> paths;
-        std::vector<uint32_t> pathOf;  // per camera ray: its path, or UINT32_MAX where it saw the sky
-        std::vector<float> probs;
-        BatchScratch scratch;
-    };
-    tbb::enumerable_thread_specific<TileBuffers> threadBuffers;
+    const TileRender tiles(*this, settings, rays, image);
+    tbb::enumerable_thread_specific<TileRender::Buffers> threadBuffers;
 
     tbb::parallel_for(tbb::blocked_range<int>(0, tileCount, 1), [&](const tbb::blocked_range<int>& range) {
         RayCounters counters;
-        TileBuffers& buffers = threadBuffers.local();
-        std::vector<uint32_t>& streams = buffers.streams;
-        std::vector<int>&pixelX = buffers.pixelX, &pixelY = buffers.pixelY;
-        std::vector<glm::dvec3>& sums = buffers.sums;
-        CameraBatch* cameraBatches = buffers.cameraBatches;
-        std::vector<Sampler*>& samplerOf = buffers.samplerOf;
-        std::vector<glm::vec2>& jitters = buffers.jitters;
-        std::vector<float>&rasterX = buffers.rasterX, &rasterY = buffers.rasterY;
-        std::vector<Path>& paths = buffers.paths;
-        std::vector<uint32_t>& pathOf = buffers.pathOf;
-        std::vector<float>& probs = buffers.probs;
-        probs.resize(probsPerPath * batch);
-        BatchScratch& scratch = buffers.scratch;
         for (int tile = range.begin(); tile != range.end(); ++tile) {
             int x0 = (tile % tilesX) * ts, y0 = (tile / tilesX) * ts;
             int x1 = std::min(x0 + ts, settings.width), y1 = std::min(y0 + ts, settings.height);
-            if (!batched) {
-                for (int y = y0; y < y1; ++y)
-                    for (int x = x0; x < x1; ++x) {
-                        glm::dvec3 sum(0.0);
-                        for (int s = 0; s < settings.spp; ++s) {
-                            glm::vec3 o, d;
-                            Sampler sampler = cameraSample(rays, x, y, settings.seed, uint32_t(s), o, d);
-                            glm::vec3 L = radiance(o, d, sampler, settings.maxDepth, counters);
-                            if (isFinite(L))
-                                sum += glm::dvec3(L);
-                            else
-                                ++counters.nonFiniteSamples;
-                        }
-                        image.at(x, y) = glm::vec3(sum / double(std::max(1, settings.spp)));
-                    }
-            } else {
-                // The tile's samples in batches, pixel by pixel: each pixel's samples are summed in the same order
-                // as above.
-                const int tw = x1 - x0;
-                const size_t pixels = size_t(tw) * size_t(y1 - y0);
-                streams.resize(pixels);
-                pixelX.resize(pixels);
-                pixelY.resize(pixels);
-                sums.assign(pixels, glm::dvec3(0.0));
-                for (size_t i = 0; i < pixels; ++i) {
-                    pixelX[i] = x0 + int(i) % tw;
-                    pixelY[i] = y0 + int(i) / tw;
-                    streams[i] = pixelStream(uint32_t(pixelX[i]), uint32_t(pixelY[i]), settings.seed);
-                }
-                // Path q is sample q % spp of pixel q / spp: a pixel's samples are consecutive paths of a batch, so
-                // the texels one sample's lookups bring into the cache serve the pixel's other samples (whose
-                // camera rays land within its footprint); each pixel still sums its samples in their order.
-                const size_t spp = size_t(std::max(0, settings.spp)), count = pixels * spp;
-                // Asks for the texels the interactions of a batch's camera hits will read.
-                auto prefetchHits = [&](const CameraBatch& c, size_t m) {
-                    if (!scene_.textures.empty())
-                        for (size_t k = 0; k < m; ++k)
-                            if (c.hits[k].valid()) prefetchInteraction(scene_, c.hits[k]);
-                };
-                // The camera rays of the batch of paths [first, first + m), traced, their hits' texels prefetched.
-                auto traceCameraRays = [&](CameraBatch& c, size_t first, size_t m) {
-                    c.samplers.clear();
-                    c.rays.resize(m);
-                    c.hits.resize(m);
-                    c.pixelOf.resize(m);
-                    samplerOf.resize(m);
-                    jitters.resize(m);
-                    // Each path's pixel and sample number, counted on from the batch's first path's.
-                    for (size_t k = 0, pixel = first / spp, sample = first % spp; k < m; ++k) {
-                        c.pixelOf[k] = uint32_t(pixel);
-                        c.samplers.emplace_back(streams[pixel], uint32_t(sample));
-                        if (++sample == spp) {
-                            sample = 0;
-                            ++pixel;
-                        }
-                    }
-                    for (size_t k = 0; k < m; ++k) samplerOf[k] = &c.samplers[k];
-                    next2D(samplerOf.data(), m, 1, jitters.data());
-                    rasterX.resize(m);
-                    rasterY.resize(m);
-                    for (size_t k = 0; k < m; ++k) {
-                        rasterX[k] = float(pixelX[c.pixelOf[k]]) + jitters[k].x;
-                        rasterY[k] = float(pixelY[c.pixelOf[k]]) + jitters[k].y;
-                    }
-                    rays.generate(rasterX.data(), rasterY.data(), m, c.rays.data());
-                    counters.primary += m;
-                    accel_.intersect(c.rays.data(), m, c.hits.data(), settings.coherentCameraRays);
-                    prefetchHits(c, m);
-                };
-                if (count > 0) traceCameraRays(cameraBatches[0], 0, std::min(batch, count));
-                for (size_t first = 0, b = 0; first < count; first += batch, ++b) {
-                    const size_t m = std::min(batch, count - first);
-                    CameraBatch& c = cameraBatches[b & 1];
-                    const size_t next = first + batch;
-                    if (next < count) traceCameraRays(cameraBatches[(b + 1) & 1], next, std::min(batch, count - next));
-                    // The texels again, now: the requests made a batch ahead do not all survive the previous batch
-                    // (LightsPunctualLamp: 1-4% faster with both than with the early one alone).
-                    prefetchHits(c, m);
-                    if (paths.size() < m) paths.resize(m);  // constructed once, restarted by every batch
-                    size_t started = 0;
-                    pathOf.resize(m);
-                    for (size_t k = 0; k < m; ++k) {
-                        if (!c.hits[k].valid()) {
-                            pathOf[k] = UINT32_MAX;
-                            continue;
-                        }
-                        pathOf[k] = uint32_t(started);
-                        Path& p = paths[started++];
-                        p.restart(&c.samplers[k], probsPerPath > 0 ? probs.data() + probsPerPath * k : nullptr);
-                        makeInteraction(scene_, c.hits[k], c.rays[k].direction, p.si);
-                    }
-                    traceBatch(paths.data(), started, settings.maxDepth, counters, scratch);
-                    // A pixel's samples are a run of the batch: summed in a register, stored where the run ends
-                    // (the same additions in the same order as into sums[] one by one).
-                    uint32_t runPixel = c.pixelOf[0];
-                    glm::dvec3 run = sums[runPixel];
-                    for (size_t k = 0; k < m; ++k) {
-                        if (c.pixelOf[k] != runPixel) {
-                            sums[runPixel] = run;
-                            runPixel = c.pixelOf[k];
-                            run = sums[runPixel];
-                        }
-                        // The sky (and suns' disks) where the camera ray left the scene.
-                        const glm::vec3 L = pathOf[k] != UINT32_MAX ? paths[pathOf[k]].L
-                                            : uniformSky                ? uniformSkyRadiance
-                                                                        : skyRadiance(scene_, c.rays[k].direction);
-                        if (isFinite(L))
-                            run += glm::dvec3(L);
-                        else
-                            ++counters.nonFiniteSamples;
-                    }
-                    sums[runPixel] = run;
-                }
-                for (size_t i = 0; i < pixels; ++i)
-                    image.at(pixelX[i], pixelY[i]) = glm::vec3(sums[i] / double(std::max(1, settings.spp)));
-            }
+            if (settings.batchSize > 1)
+                tiles.batched(threadBuffers.local(), x0, y0, x1, y1, counters);
+            else
+                tiles.plain(x0, y0, x1, y1, counters);
             int done = ++tilesDone;
             if (progress) progress(double(done) / double(tileCount));
         }

@@ -155,6 +155,7 @@ public:
 private:
     struct Path;  // one path's state between its vertices (path_tracer.cpp)
     struct BatchScratch;
+    struct TileRender;  // render()'s tiles
     // The parts of one path vertex, shared by the one-path tracer (trace) and the batched one (traceBatch).
     // scatterBegin: emission at p.si (MIS-weighted), the cut, the vertex's sample points (u: three 2D points,
     // nullptr to draw them from p's sampler) and the light sample; false if the path ends here. shade: the
