@@ -23,7 +23,7 @@ LightSelector::LightSelector(const LightSampler& lights, const Bounds3& sceneBou
     : lights_(lights),
       settings_(settings),
       network_(int(std::max<size_t>(lights.groupCount(), 1)), settings.seed),
-      adam_(network_.parameters().size(), settings.learningRate) {
+      adam_(network_.parameters().size()) {
     settings_.mix = std::clamp(settings_.mix, 1e-3f, 1.0f);
     settings_.batchesPerRound = std::max(1, settings_.batchesPerRound);
     settings_.trainBatches = std::max(1, settings_.trainBatches);

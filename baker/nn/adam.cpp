@@ -5,8 +5,7 @@
 
 namespace nrad {
 
-Adam::Adam(size_t parameterCount, float beta1, float beta2, float epsilon)
-    : m_(parameterCount, 0.0f), v_(parameterCount, 0.0f), beta1_(beta1), beta2_(beta2), epsilon_(epsilon) {}
+Adam::Adam(size_t parameterCount) : m_(parameterCount, 0.0f), v_(parameterCount, 0.0f) {}
 
 void Adam::step(std::vector<float>& params, const std::vector<float>& grad, float learningRate) {
     beta1Power_ *= beta1_;

@@ -10,13 +10,15 @@ namespace nrad {
 
 class Adam {
 public:
-    explicit Adam(size_t parameterCount, float beta1 = 0.9f, float beta2 = 0.999f, float epsilon = 1e-8f);
+    // The usual moments' decays and epsilon; no other argument, so that nothing converts into them (a learning rate
+    // passed here was once taken for beta1).
+    explicit Adam(size_t parameterCount);
     // One step at this learning rate (the caller's schedule).
     void step(std::vector<float>& params, const std::vector<float>& grad, float learningRate);
 
 private:
     std::vector<float> m_, v_;
-    float beta1_, beta2_, epsilon_;
+    static constexpr float beta1_ = 0.9f, beta2_ = 0.999f, epsilon_ = 1e-8f;
     double beta1Power_ = 1.0, beta2Power_ = 1.0;
 };
 
