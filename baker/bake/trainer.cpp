@@ -11,12 +11,9 @@
 
 #include "baker/nn/schedule.h"
 #include "baker/render/sampler.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
-
-namespace {
-float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-}  // namespace
 
 glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const float y[3]) {
     float rgb[3];
@@ -25,12 +22,7 @@ glm::vec3 decodeOutput(format::OutputTransform transform, float scale, const flo
 }
 
 double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& reference) {
-    double e = 0.0;
-    for (int c = 0; c < 3; ++c) {
-        double d = double(prediction[c]) - double(reference[c]);
-        e += d * d / (double(reference[c]) * double(reference[c]) + 0.01);
-    }
-    return e / 3.0;
+    return relMse(prediction, reference);
 }
 
 std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& partition, const std::vector<uint32_t>& cellOfSample,
@@ -271,7 +263,7 @@ VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& 
     // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
     double meanLum = 0.0, weightSum = 0.0;
     for (size_t i : train) {
-        meanLum += double(d.blend(i)) * std::max(0.0f, luminance(d.targets[i]));
+        meanLum += double(d.blend(i)) * std::max(0.0f, luminancef(d.targets[i]));
         weightSum += double(d.blend(i));
     }
     meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;

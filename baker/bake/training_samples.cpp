@@ -15,8 +15,6 @@ namespace nrad {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
-
 // Streams of the sampler, one per purpose, so the point sequence does not depend on the path count.
 constexpr uint32_t kPointStream = 0x706f696eu;  // "poin"
 constexpr uint32_t kFloorStream = 0x666c6f6fu;  // "floo"

@@ -1,5 +1,6 @@
 // Environment importance sampling (piecewise-constant 2D distribution over the map).
 #include "baker/lights/environment_light.h"
+#include "baker/util/maths.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +11,6 @@ namespace nrad {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Index i with cdf[i] <= u < cdf[i + 1] (cdf ascending from 0 to 1, intervals of zero width never chosen),
 // and u rescaled to [0, 1) within that interval.
@@ -38,7 +38,7 @@ EnvironmentSampler::EnvironmentSampler(const Environment& env) : env_(env) {
     std::vector<double> weight(W * H);
     double total = 0.0;
     for (size_t y = 0; y < H; ++y) {
-        double sinTheta = std::sin(kPi * (double(y) + 0.5) / double(H));
+        double sinTheta = std::sin(kPiDouble * (double(y) + 0.5) / double(H));
         double* row = &conditional_[y * (W + 1)];
         double acc = 0.0;
         for (size_t x = 0; x < W; ++x) {
@@ -65,9 +65,9 @@ glm::vec3 EnvironmentSampler::sample(glm::vec2 u, float& pdf, glm::vec3& radianc
     radiance = glm::vec3(0.0f);
     if (!active_) return glm::vec3(0.0f, 1.0f, 0.0f);
     if (env_.kind == Environment::Kind::Constant) {
-        float z = 1.0f - 2.0f * u.y, r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = float(2.0 * kPi) * u.x;
+        float z = 1.0f - 2.0f * u.y, r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = float(2.0 * kPiDouble) * u.x;
         glm::vec3 d(r * std::cos(phi), z, r * std::sin(phi));
-        pdf = float(1.0 / (4.0 * kPi));
+        pdf = float(1.0 / (4.0 * kPiDouble));
         radiance = env_.radiance(d);
         return d;
     }
@@ -77,10 +77,10 @@ glm::vec3 EnvironmentSampler::sample(glm::vec2 u, float& pdf, glm::vec3& radianc
     size_t x = invert(&conditional_[y * (W + 1)], W, ux);
     glm::vec2 uv(float((double(x) + ux) / double(W)), float((double(y) + uy) / double(H)));
     glm::vec3 d = env_.direction(uv);
-    float sinTheta = std::sin(uv.y * float(kPi));
+    float sinTheta = std::sin(uv.y * float(kPiDouble));
     float density = density_[y * W + x];
     if (!(sinTheta > 0.0f) || !(density > 0.0f)) return d;
-    pdf = density / (float(2.0 * kPi * kPi) * sinTheta);
+    pdf = density / (float(2.0 * kPiDouble * kPiDouble) * sinTheta);
     // The texel sampled, not a lookup of d (which could round into the neighbour at a texel's edge).
     radiance = env_.intensity * env_.texels[y * W + x];
     if (!std::isfinite(pdf)) pdf = 0.0f;
@@ -89,13 +89,13 @@ glm::vec3 EnvironmentSampler::sample(glm::vec2 u, float& pdf, glm::vec3& radianc
 
 float EnvironmentSampler::pdf(const glm::vec3& towards) const {
     if (!active_) return 0.0f;
-    if (env_.kind == Environment::Kind::Constant) return float(1.0 / (4.0 * kPi));
+    if (env_.kind == Environment::Kind::Constant) return float(1.0 / (4.0 * kPiDouble));
     const int W = env_.width, H = env_.height;
     glm::vec2 uv = env_.mapCoordinates(towards);
     int x = std::min(W - 1, int(uv.x * float(W))), y = std::min(H - 1, int(uv.y * float(H)));
     float sinTheta = std::sqrt(std::max(0.0f, 1.0f - towards.y * towards.y));
     if (!(sinTheta > 0.0f)) return 0.0f;
-    float p = density_[size_t(y) * size_t(W) + size_t(x)] / (float(2.0 * kPi * kPi) * sinTheta);
+    float p = density_[size_t(y) * size_t(W) + size_t(x)] / (float(2.0 * kPiDouble * kPiDouble) * sinTheta);
     return std::isfinite(p) ? p : 0.0f;
 }
 

@@ -9,19 +9,18 @@
 #include "baker/lights/environment_light.h"
 #include "baker/scene/geometry.h"
 #include "baker/scene/material_lookup.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Solid angle of a soft sun's disk and sin^2 of its angular radius. sin^2 = (1 - c)(1 + c): 1 - c is exact
 // (c >= 1/2) and the rest two roundings, where 1 - c * c lost c * c's rounding, up to 1e-4 of a small disk's
 // sin^2 (a 2-degree sun's irradiance 7.5e-5 low; issue 37, tests/baker/lights/soft_sun_test.cpp).
 void softSunDisk(const PunctualLight& l, float& solidAngle, float& sin2) {
     const float c = std::clamp(l.cosAngularRadius, -1.0f, 1.0f);
-    solidAngle = float(2.0 * kPi) * (1.0f - c);
+    solidAngle = float(2.0 * kPiDouble) * (1.0f - c);
     sin2 = std::max(0.0f, (1.0f - c) * (1.0f + c));
 }
 
@@ -31,7 +30,7 @@ bool softSunRadiance(const PunctualLight& l, const glm::vec3& wi, glm::vec3& Le,
     float omega, sin2;
     softSunDisk(l, omega, sin2);
     if (!(omega > 0.0f) || !(sin2 > 0.0f)) return false;
-    Le = l.intensity / (float(kPi) * sin2);  // E = integral of Le cos over the disk = Le pi sin^2(radius)
+    Le = l.intensity / (float(kPiDouble) * sin2);  // E = integral of Le cos over the disk = Le pi sin^2(radius)
     pdf = 1.0f / omega;
     return true;
 }
@@ -52,11 +51,11 @@ public:
         // kept a few bits of a small disk's sine).
         const float oneMinusCos = u.x * (1.0f - light_.cosAngularRadius);
         const float cosT = 1.0f - oneMinusCos, sinT = std::sqrt(std::max(0.0f, oneMinusCos * (2.0f - oneMinusCos)));
-        const float phi = float(2.0 * kPi) * u.y;
+        const float phi = float(2.0 * kPiDouble) * u.y;
         Frame frame = Frame::fromNormal(-light_.direction);
         ls.wi = glm::normalize(frame.toWorld(glm::vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT)));
         ls.distance = std::numeric_limits<float>::infinity();
-        ls.Li = light_.intensity / (float(kPi) * sin2);
+        ls.Li = light_.intensity / (float(kPiDouble) * sin2);
         ls.pdf = 1.0f / omega;
         return ls;
     }
@@ -229,23 +228,23 @@ std::vector<std::unique_ptr<Light>> makeLights(const Scene& scene, const Environ
         const Material& m = scene.materials[scene.mesh.materialIds[t]];
         if (!m.emissive()) continue;
         glm::vec3 e = scene.triangleEmission(t);  // averaged over the triangle's texels: zero-power emitters are no lights
-        double pw = double(scene.mesh.triangleArea(t)) * kPi * luminance(e) * (m.doubleSided ? 2.0 : 1.0);
+        double pw = double(scene.mesh.triangleArea(t)) * kPiDouble * luminance(e) * (m.doubleSided ? 2.0 : 1.0);
         if (pw > 0.0 && std::isfinite(pw)) lights.push_back(std::make_unique<TriangleLight>(scene, uint32_t(t), pw));
     }
     for (const PunctualLight& l : scene.lights) {
         double lum = luminance(l.intensity), pw = 0.0;
         switch (l.type) {
-            case PunctualLight::Type::Point: pw = 4.0 * kPi * lum; break;
+            case PunctualLight::Type::Point: pw = 4.0 * kPiDouble * lum; break;
             case PunctualLight::Type::Spot:
-                pw = 2.0 * kPi * (1.0 - 0.5 * (double(l.cosInnerCone) + double(l.cosOuterCone))) * lum;
+                pw = 2.0 * kPiDouble * (1.0 - 0.5 * (double(l.cosInnerCone) + double(l.cosOuterCone))) * lum;
                 break;
-            case PunctualLight::Type::Directional: pw = kPi * r2 * lum; break;
+            case PunctualLight::Type::Directional: pw = kPiDouble * r2 * lum; break;
         }
         if (pw > 0.0 && std::isfinite(pw)) lights.push_back(std::make_unique<PunctualSource>(l, pw, center));
     }
     if (environment.active()) {
         // What crosses the scene's bounding sphere: pi x mean radiance over its area (pbrt's Phi).
-        double pw = 4.0 * kPi * kPi * r2 * luminance(scene.environment.meanRadiance());
+        double pw = 4.0 * kPiDouble * kPiDouble * r2 * luminance(scene.environment.meanRadiance());
         if (pw > 0.0 && std::isfinite(pw)) {
             if (environmentIndex) *environmentIndex = int32_t(lights.size());
             lights.push_back(std::make_unique<EnvironmentLight>(scene.environment, environment, pw, center));

@@ -5,12 +5,12 @@
 #include <cmath>
 
 #include "baker/render/sincos.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
 
 float maxComponent(const glm::vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
 float pow5(float x) {
@@ -83,7 +83,7 @@ float Bsdf::macroFresnel(float cosTheta) const {
 
 void Bsdf::lobeWeights(float fresnel, float& spec, float& diff, float& trans) const {
     // Expected weight of each lobe at this viewing angle (Fresnel at the macro normal).
-    float baseLum = 0.2126f * p_.baseColor.x + 0.7152f * p_.baseColor.y + 0.0722f * p_.baseColor.z;
+    float baseLum = luminancef(p_.baseColor);
     spec = p_.metallic + (1.0f - p_.metallic) * p_.specular * fresnel;
     float base = (1.0f - p_.metallic) * (1.0f - p_.specular * fresnel) * baseLum;
     diff = (1.0f - p_.transmission) * base;

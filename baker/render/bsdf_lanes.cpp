@@ -9,12 +9,12 @@
 #include "baker/render/bsdf.h"
 #include "baker/render/lane_math.h"
 #include "baker/render/sincos.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
 
 #define LANE NRAD_LANE
 using namespace lanes;

@@ -15,6 +15,7 @@
 #include "baker/render/camera.h"
 #include "baker/render/scatter_lanes.h"
 #include "baker/render/surface.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
@@ -260,7 +261,7 @@ bool PathTracer::scatterEnd(Path& p, RayCounters& counters, std::vector<Recorded
                 // chosen it: the weight of the cross-entropy gradient.
                 glm::vec3 c = f * ls.Li;
                 p.neeRecord.light = uint32_t(p.chosen);
-                p.neeRecord.weight = (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z) / ls.pdf;
+                p.neeRecord.weight = luminancef(c) / ls.pdf;
                 p.neePending = p.neeRecord.weight > 0.0f && std::isfinite(p.neeRecord.weight);
             }
         }

@@ -13,13 +13,13 @@
 #include <stb_image.h>
 
 #include "baker/scene/gltf_loader.h"
+#include "baker/util/maths.h"
 #include "baker/util/paths.h"
 
 namespace nrad {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
 
 // Rotation about +Y by `degrees` (counter-clockwise seen from above) applied to v.
 glm::vec3 rotateY(const glm::vec3& v, float degrees) {

@@ -11,6 +11,7 @@
 
 #include "baker/scene/environment.h"
 #include "baker/scene/texture.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
@@ -19,7 +20,6 @@ namespace nrad {
 constexpr float kLumensPerWatt = 683.0f;
 
 // Luminance of a linear Rec. 709 colour: how lights' power and maps' brightness are weighed.
-inline double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
 
 struct Bounds3 {
     glm::vec3 lower{std::numeric_limits<float>::infinity()};

@@ -126,10 +126,6 @@ void Texture::computeAverage() {
     average = n == 0 ? glm::vec4(0.0f) : glm::vec4(sum / double(n));
 }
 
-float srgbToLinear(float c) {
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-
 const float* unitOfByte() {
     static const std::array<float, 256> table = [] {
         std::array<float, 256> t{};
@@ -146,10 +142,6 @@ const float* linearOfSrgbByte() {
         return t;
     }();
     return table.data();
-}
-
-float linearToSrgb(float c) {
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
 }
 
 }  // namespace nrad

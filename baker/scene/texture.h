@@ -10,6 +10,7 @@
 #include <glm/glm.hpp>
 
 #include "baker/scene/large_pages.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
@@ -59,7 +60,5 @@ struct Texture {
 };
 
 // sRGB transfer function, decoding (0..1 -> linear) and encoding (linear -> 0..1).
-float srgbToLinear(float c);
-float linearToSrgb(float c);
 
 }  // namespace nrad

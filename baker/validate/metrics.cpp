@@ -7,6 +7,8 @@
 #include <map>
 #include <stdexcept>
 
+#include "baker/util/maths.h"
+
 namespace nrad {
 
 namespace {
@@ -19,12 +21,8 @@ void requireSameSize(const Image& a, const Image& b) {
 
 double tonemap(double v, double gain) {
     v = std::isfinite(v) ? std::clamp(v * gain, 0.0, 1.0) : 0.0;
-    return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
+    return linearToSrgb(v);
 }
-
-double srgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); }
-
-double luminance(const glm::vec3& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
 
 // Separable Gaussian blur (sigma 1.5, 11 taps, normalised; edges clamped) of a w x h plane.
 std::vector<double> gaussian11(const std::vector<double>& in, int w, int h) {
@@ -80,7 +78,7 @@ ImageMetrics compareImages(const Image& image, const Image& reference, float exp
             if (!std::isfinite(x)) x = 0.0;
             double d = x - ref;
             se += d * d;
-            rel += d * d / (ref * ref + 0.01);
+            rel += relMseTerm(x, ref);
             mre += std::abs(d) / (std::abs(ref) + 0.01);
             double t = tonemap(x, gain) - tonemap(ref, gain);
             tse += t * t;
@@ -151,12 +149,9 @@ Image relativeErrorMap(const Image& image, const Image& reference) {
 
 namespace {
 double pixelRelMse(const glm::vec3& x, const glm::vec3& ref) {
-    double e = 0.0;
-    for (int c = 0; c < 3; ++c) {
-        double v = std::isfinite(x[c]) ? double(x[c]) : 0.0, d = v - double(ref[c]);
-        e += d * d / (double(ref[c]) * double(ref[c]) + 0.01);
-    }
-    return e / 3.0;
+    glm::vec3 v;
+    for (int c = 0; c < 3; ++c) v[c] = std::isfinite(x[c]) ? x[c] : 0.0f;
+    return relMse(v, ref);
 }
 double pixelRelativeError(const glm::vec3& x, const glm::vec3& ref) {
     double e = 0.0;
@@ -231,7 +226,7 @@ std::vector<DecadeError> relMseByDecade(const Image& image, const Image& referen
                 for (int c = 0; c < 3; ++c) {
                     double ref = reference.pixels[i][c], x = image.pixels[i][c];
                     double diff = (std::isfinite(x) ? x : 0.0) - ref;
-                    d.relMse += diff * diff / (ref * ref + 0.01);
+                    d.relMse += relMseTerm(std::isfinite(x) ? x : 0.0, ref);
                     if (ref > 0.0) {
                         d.relativeRms += diff * diff / (ref * ref);
                         ++positive[size_t(&d - decades.data())];
