@@ -111,54 +111,113 @@ struct Candidate {
     bool operator<(const Candidate& o) const { return priority != o.priority ? priority < o.priority : cell > o.cell; }
 };
 
-}  // namespace
+// The greedy refinement: the samples' lattice coordinates and features, the cells built so far (cells[0] the
+// root; a split cell's two children appended), and the networks and tree nodes they cost.
+class Refiner {
+public:
+    Refiner(const format::Grid& lattice, const std::vector<TrainingSample>& samples, const std::vector<float>& learned,
+            const format::Topology& topology, const PartitionSettings& settings, const MetadataReserve& reserve)
+        : settings_(settings), learned_(learned), topology_(topology), reserve_(reserve), n_(samples.size()),
+          perNetwork_(8 + topology.parameterCount() * topology.bytesPerWeight() + reserve.perNetwork) {
+        placeSamples(lattice, samples);
+        buildingGrid_ = settings.gridRefine > 0;
+        cells_.resize(1);
+        for (int k = 0; k < 3; ++k) cells_[0].box.hi[k] = lattice.dims[k];
+        cells_[0].samples.resize(n_);
+        for (size_t i = 0; i < n_; ++i) cells_[0].samples[i] = uint32_t(i);
+    }
 
-AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
-                                  const std::vector<float>& learned, const format::Topology& topology,
-                                  const PartitionSettings& settings, const MetadataReserve& reserve, const LeafScorer& scorer) {
-    const float factor[3] = {eval::gridFactor(lattice, 0), eval::gridFactor(lattice, 1), eval::gridFactor(lattice, 2)};
-    const size_t n = samples.size();
+    AdaptivePartition run(const LeafScorer& scorer) {
+        networks_ = n_ > 0 ? 1 : 0;
+        if (bytesOf(std::max<uint64_t>(networks_, 1), 1) > settings_.budgetBytes)
+            throw std::runtime_error("--budget " + std::to_string(settings_.budgetBytes) + " bytes is below the smallest asset (one network: " +
+                                     std::to_string(bytesOf(1, 1)) + " bytes)");
+        evaluate(cells_[0]);
+        out_.rootResidual = cells_[0].residual;
+        // 1. By the residual, up to `residualShare` of the budget's networks (all of it without a scorer).
+        const uint64_t perNetworkOnly = perNetwork_ + 16;
+        const uint64_t fixed = bytesOf(0, 1);
+        const uint64_t affordable = settings_.budgetBytes > fixed ? (settings_.budgetBytes - fixed) / perNetworkOnly : 0;
+        const uint64_t phaseOne = scorer ? std::max<uint64_t>(1, uint64_t(double(affordable) * settings_.residualShare)) : UINT64_MAX;
+        if (settings_.gridRefine > 0) {
+            cutGrid();
+        } else {
+            push(0);
+        }
+        while (!queue_.empty() && networks_ < phaseOne) {
+            const Candidate best = queue_.top();
+            queue_.pop();
+            if (!split(best.cell)) continue;
+            push(uint32_t(cells_.size() - 2));
+            push(uint32_t(cells_.size() - 1));
+        }
+        if (scorer) refineByScore(scorer);
+        // Emit in the format's order: depth first, lower child first, children adjacent, leaves numbered.
+        out_.tree.assign(1, {});
+        out_.leafOfSample.assign(n_, 0);
+        emit(0, 0);
+        out_.bytes = bytesOf(out_.networks, out_.tree.size());
+        return std::move(out_);
+    }
+
+private:
+    const PartitionSettings& settings_;
+    const std::vector<float>& learned_;
+    const format::Topology& topology_;
+    const MetadataReserve& reserve_;
+    const size_t n_;
+    const uint64_t perNetwork_;
+    std::vector<float> t_, features_;  // per sample: its lattice coordinate (3), its features (kFeatures)
+    bool buildingGrid_ = false;  // while the grid's cells are cut (no other split meanwhile)
+    std::vector<BuildCell> cells_;
+    std::priority_queue<Candidate> queue_;
+    uint64_t networks_ = 0, nodes_ = 1;
+    AdaptivePartition out_;
+
+    uint64_t bytesOf(uint64_t networks, uint64_t nodes) const {
+        return format::encodedSize(topology_, networks, nodes, reserve_.bytes(networks));
+    }
+
     // Each sample's lattice coordinate and features (position scaled to the box).
-    std::vector<float> t(3 * n), features(kFeatures * n);
-    float scale = 0.0f;
-    for (int k = 0; k < 3; ++k) scale = std::max(scale, lattice.upper[k] - lattice.lower[k]);
-    for (size_t i = 0; i < n; ++i) {
-        const TrainingSample& s = samples[i];
-        float* f = &features[kFeatures * i];
-        f[0] = 1.0f;
-        for (int k = 0; k < 3; ++k) {
-            const float p = std::clamp(s.position[k], lattice.lower[k], lattice.upper[k]);
-            t[3 * i + size_t(k)] = eval::gridCoordinate(p, lattice.lower[k], factor[k]);
-            f[1 + k] = (p - lattice.lower[k]) / scale;
-            f[4 + k] = s.normal[k];
-            f[7 + k] = s.wo[k];
+    void placeSamples(const format::Grid& lattice, const std::vector<TrainingSample>& samples) {
+        const float factor[3] = {eval::gridFactor(lattice, 0), eval::gridFactor(lattice, 1), eval::gridFactor(lattice, 2)};
+        t_.resize(3 * n_);
+        features_.resize(kFeatures * n_);
+        float scale = 0.0f;
+        for (int k = 0; k < 3; ++k) scale = std::max(scale, lattice.upper[k] - lattice.lower[k]);
+        for (size_t i = 0; i < n_; ++i) {
+            const TrainingSample& s = samples[i];
+            float* f = &features_[kFeatures * i];
+            f[0] = 1.0f;
+            for (int k = 0; k < 3; ++k) {
+                const float p = std::clamp(s.position[k], lattice.lower[k], lattice.upper[k]);
+                t_[3 * i + size_t(k)] = eval::gridCoordinate(p, lattice.lower[k], factor[k]);
+                f[1 + k] = (p - lattice.lower[k]) / scale;
+                f[4 + k] = s.normal[k];
+                f[7 + k] = s.wo[k];
+            }
         }
     }
-    const uint64_t perNetwork = 8 + topology.parameterCount() * topology.bytesPerWeight() + reserve.perNetwork;
-    auto bytesOf = [&](uint64_t networks, uint64_t nodes) {
-        return format::encodedSize(topology, networks, nodes, reserve.bytes(networks));
-    };
 
-    bool buildingGrid = settings.gridRefine > 0;  // while the grid's cells are cut (no other split meanwhile)
-    std::vector<BuildCell> cells(1);
-    for (int k = 0; k < 3; ++k) cells[0].box.hi[k] = lattice.dims[k];
-    cells[0].samples.resize(n);
-    for (size_t i = 0; i < n; ++i) cells[0].samples[i] = uint32_t(i);
-
-    // Finds a cell's residual and best split: candidate planes at the eighths of each axis's extent (on the
-    // lattice), the statistics of the samples between consecutive planes summed into both sides of each.
-    auto evaluate = [&](BuildCell& c) {
-        const size_t count = c.samples.size();
-        const size_t stride = std::max<size_t>(1, (count + kMaxStatSamples - 1) / kMaxStatSamples);
-        std::vector<uint32_t> planes[3];
+    // A cell's candidate planes: at the eighths (settings.candidatePlanes) of each axis's extent, on the lattice.
+    void candidatePlanes(const BuildCell& c, std::vector<uint32_t> planes[3]) const {
         for (int k = 0; k < 3; ++k) {
             const uint32_t lo = c.box.lo[k], extent = c.box.hi[k] - c.box.lo[k];
-            const uint32_t bins = std::max(1u, settings.candidatePlanes) + 1;
+            const uint32_t bins = std::max(1u, settings_.candidatePlanes) + 1;
             for (uint32_t j = 1; j < bins; ++j) {
                 const uint32_t plane = lo + uint32_t((uint64_t(extent) * j + bins / 2) / bins);
                 if (plane > lo && plane < c.box.hi[k] && (planes[k].empty() || planes[k].back() != plane)) planes[k].push_back(plane);
             }
         }
+    }
+
+    // Finds a cell's residual and best split: the statistics of the samples between consecutive candidate
+    // planes summed into both sides of each.
+    void evaluate(BuildCell& c) const {
+        const size_t count = c.samples.size();
+        const size_t stride = std::max<size_t>(1, (count + kMaxStatSamples - 1) / kMaxStatSamples);
+        std::vector<uint32_t> planes[3];
+        candidatePlanes(c, planes);
         std::vector<Moments> bins[3];
         std::vector<size_t> binCount[3];
         for (int k = 0; k < 3; ++k) {
@@ -169,12 +228,12 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
             const uint32_t i = c.samples[j];
             const bool used = j % stride == 0;
             for (int k = 0; k < 3; ++k) {
-                const float tk = t[3 * size_t(i) + size_t(k)];
+                const float tk = t_[3 * size_t(i) + size_t(k)];
                 const size_t bin = size_t(std::upper_bound(planes[k].begin(), planes[k].end(), tk,
                                                             [](float v, uint32_t plane) { return v < float(plane); }) -
                                            planes[k].begin());
                 ++binCount[k][bin];
-                if (used) bins[k][bin].add(&features[kFeatures * size_t(i)], learned[i]);
+                if (used) bins[k][bin].add(&features_[kFeatures * size_t(i)], learned_[i]);
             }
         }
         Moments all;
@@ -189,7 +248,7 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
                 lower = lower.plus(bins[k][j]);
                 lo += binCount[k][j];
                 const size_t hi = count - lo;
-                if ((lo > 0 && lo < settings.minLeafSamples) || (hi > 0 && hi < settings.minLeafSamples)) continue;
+                if ((lo > 0 && lo < settings_.minLeafSamples) || (hi > 0 && hi < settings_.minLeafSamples)) continue;
                 const double gain = c.residual - (lower.residual() + all.minus(lower).residual()) * weight;
                 if (!c.canSplit || gain > c.bestGain) {
                     c.canSplit = true;
@@ -200,70 +259,60 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
                 }
             }
         }
-        if (c.canSplit && !(c.bestGain > 0.0 && c.bestGain >= settings.minGainPerSample * double(count) &&
-                            c.bestGain >= settings.minResidualShare * c.residual))
+        if (c.canSplit && !(c.bestGain > 0.0 && c.bestGain >= settings_.minGainPerSample * double(count) &&
+                            c.bestGain >= settings_.minResidualShare * c.residual))
             c.canSplit = false;
-        if (settings.gridRefine > 0 && (buildingGrid || c.extra >= settings.maxExtraDepth)) c.canSplit = false;
-    };
+        if (settings_.gridRefine > 0 && (buildingGrid_ || c.extra >= settings_.maxExtraDepth)) c.canSplit = false;
+    }
 
-    AdaptivePartition out;
-    uint64_t networks = n > 0 ? 1 : 0, nodes = 1;
-    if (bytesOf(std::max<uint64_t>(networks, 1), 1) > settings.budgetBytes)
-        throw std::runtime_error("--budget " + std::to_string(settings.budgetBytes) + " bytes is below the smallest asset (one network: " +
-                                 std::to_string(bytesOf(1, 1)) + " bytes)");
-    std::priority_queue<Candidate> queue;
-    evaluate(cells[0]);
-    out.rootResidual = cells[0].residual;
-    auto push = [&](uint32_t id) {
-        const BuildCell& c = cells[id];
+    // What splitting cell `id` at its best plane costs: two nodes, and a network if both sides have samples.
+    uint64_t splitCost(uint32_t id) const { return 16 + (cells_[id].bestMakesNetwork ? perNetwork_ : 0); }
+
+    void push(uint32_t id) {
+        const BuildCell& c = cells_[id];
         if (!c.canSplit) return;
-        const uint64_t cost = 16 + (c.bestMakesNetwork ? perNetwork : 0);
-        queue.push({c.bestGain / double(cost), id});
-    };
+        queue_.push({c.bestGain / double(splitCost(id)), id});
+    }
+
     // Splits cell `id` at its best plane if the budget allows; false (and counted) if not.
-    auto split = [&](uint32_t id) {
-        BuildCell& c = cells[id];
-        const uint64_t nextNetworks = networks + (c.bestMakesNetwork ? 1 : 0);
-        if (bytesOf(nextNetworks, nodes + 2) > settings.budgetBytes || c.depth + 1 > format::kMaxTreeDepth) {
-            ++out.splitsSkippedForBudget;
+    bool split(uint32_t id) {
+        BuildCell& c = cells_[id];
+        const uint64_t nextNetworks = networks_ + (c.bestMakesNetwork ? 1 : 0);
+        if (bytesOf(nextNetworks, nodes_ + 2) > settings_.budgetBytes || c.depth + 1 > format::kMaxTreeDepth) {
+            ++out_.splitsSkippedForBudget;
             return false;
         }
-        networks = nextNetworks;
-        nodes += 2;
+        networks_ = nextNetworks;
+        nodes_ += 2;
         BuildCell lo, hi;
         lo.box = hi.box = c.box;
         lo.box.hi[c.bestAxis] = c.bestSplit;
         hi.box.lo[c.bestAxis] = c.bestSplit;
         lo.depth = hi.depth = c.depth + 1;
-        lo.extra = hi.extra = buildingGrid ? 0 : c.extra + 1;
+        lo.extra = hi.extra = buildingGrid_ ? 0 : c.extra + 1;
         for (uint32_t i : c.samples)
-            (t[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
+            (t_[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
         std::vector<uint32_t>().swap(c.samples);
         c.axis = c.bestAxis;
         c.split = c.bestSplit;
-        c.lower = int(cells.size());
-        c.upper = int(cells.size() + 1);
+        c.lower = int(cells_.size());
+        c.upper = int(cells_.size() + 1);
         evaluate(lo);
         evaluate(hi);
-        cells.push_back(std::move(lo));  // invalidates c
-        cells.push_back(std::move(hi));
+        cells_.push_back(std::move(lo));  // invalidates c
+        cells_.push_back(std::move(hi));
         return true;
-    };
+    }
 
-    // 1. By the residual, up to `residualShare` of the budget's networks (all of it without a scorer).
-    const uint64_t perNetworkOnly = perNetwork + 16;
-    const uint64_t fixed = bytesOf(0, 1);
-    const uint64_t affordable = settings.budgetBytes > fixed ? (settings.budgetBytes - fixed) / perNetworkOnly : 0;
-    const uint64_t phaseOne = scorer ? std::max<uint64_t>(1, uint64_t(double(affordable) * settings.residualShare)) : UINT64_MAX;
-    if (settings.gridRefine > 0) {
-        // The grid first: each cell wider than one grid voxel is cut at its middle multiple of gridRefine along
-        // its widest axis (in grid voxels), whatever the gain, until the leaves are the grid's voxels.
-        const uint32_t g = settings.gridRefine;
+    // The grid first: each cell wider than one grid voxel is cut at its middle multiple of gridRefine along
+    // its widest axis (in grid voxels), whatever the gain, until the leaves are the grid's voxels.
+    void cutGrid() {
+        const uint32_t g = settings_.gridRefine;
         std::vector<uint32_t> open{0}, leaves;
         while (!open.empty()) {
             const uint32_t id = open.back();
             open.pop_back();
-            BuildCell& c = cells[id];
+            BuildCell& c = cells_[id];
             uint32_t axis = 0, widest = 0;
             for (uint32_t k = 0; k < 3; ++k) {
                 const uint32_t w = (c.box.hi[k] - c.box.lo[k]) / g;
@@ -276,49 +325,38 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
             c.bestAxis = axis;
             c.bestSplit = c.box.lo[axis] + g * (widest / 2);
             size_t lo = 0;
-            for (uint32_t i : c.samples) lo += t[3 * size_t(i) + axis] < float(c.bestSplit) ? 1 : 0;
+            for (uint32_t i : c.samples) lo += t_[3 * size_t(i) + axis] < float(c.bestSplit) ? 1 : 0;
             c.bestMakesNetwork = lo > 0 && lo < c.samples.size();
             if (!split(id)) throw std::logic_error("refinePartition: the grid does not fit the budget");
-            open.push_back(uint32_t(cells.size() - 1));
-            open.push_back(uint32_t(cells.size() - 2));
+            open.push_back(uint32_t(cells_.size() - 1));
+            open.push_back(uint32_t(cells_.size() - 2));
         }
-        buildingGrid = false;
+        buildingGrid_ = false;
         for (uint32_t id : leaves) {
-            evaluate(cells[id]);
+            evaluate(cells_[id]);
             push(id);
         }
-    } else {
-        push(0);
     }
-    while (!queue.empty() && networks < phaseOne) {
-        const Candidate best = queue.top();
-        queue.pop();
-        if (!split(best.cell)) continue;
-        push(uint32_t(cells.size() - 2));
-        push(uint32_t(cells.size() - 1));
-    }
+
     // 2. By the measured error: every leaf's network trained briefly, its held-out error x samples the
     //    score; the worst quarter (per byte) split each round, at their best planes, until the budget is spent.
-    if (scorer) {
-        std::vector<double> score(cells.size(), -1.0);
+    void refineByScore(const LeafScorer& scorer) {
+        std::vector<double> score(cells_.size(), -1.0);
         for (int round = 0; round < 64; ++round) {
             std::vector<uint32_t> open, unscored;
-            for (uint32_t id = 0; id < uint32_t(cells.size()); ++id)
-                if (cells[id].lower < 0 && cells[id].canSplit) {
+            for (uint32_t id = 0; id < uint32_t(cells_.size()); ++id)
+                if (cells_[id].lower < 0 && cells_[id].canSplit) {
                     open.push_back(id);
                     if (score.size() <= id || score[id] < 0.0) unscored.push_back(id);
                 }
             if (open.empty()) break;
-            score.resize(cells.size(), -1.0);
+            score.resize(cells_.size(), -1.0);
             std::vector<const std::vector<uint32_t>*> sets;
-            for (uint32_t id : unscored) sets.push_back(&cells[id].samples);
+            for (uint32_t id : unscored) sets.push_back(&cells_[id].samples);
             const std::vector<double> scores = scorer(unscored, sets);
             for (size_t i = 0; i < unscored.size(); ++i) score[unscored[i]] = scores[i];
             std::vector<std::pair<double, uint32_t>> order;
-            for (uint32_t id : open) {
-                const uint64_t cost = 16 + (cells[id].bestMakesNetwork ? perNetwork : 0);
-                order.emplace_back(score[id] / double(cost), id);
-            }
+            for (uint32_t id : open) order.emplace_back(score[id] / double(splitCost(id)), id);
             std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first != b.first ? a.first > b.first : a.second < b.second; });
             const size_t take = std::max<size_t>(1, (order.size() + 3) / 4);
             size_t made = 0;
@@ -328,33 +366,32 @@ AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector
         }
     }
 
-    // Emit in the format's order: depth first, lower child first, children adjacent, leaves numbered.
-    out.tree.assign(1, {});
-    out.leafOfSample.assign(n, 0);
-    struct Emit {
-        std::vector<BuildCell>& cells;
-        AdaptivePartition& out;
-        void operator()(size_t id, uint32_t at) {
-            BuildCell& c = cells[id];
-            if (c.lower < 0) {
-                const uint32_t leaf = out.leafCount++;
-                out.tree[at] = {format::kTreeLeaf, 0, leaf};
-                out.leaves.push_back({c.box, c.depth, uint32_t(c.samples.size()), c.residual});
-                for (uint32_t i : c.samples) out.leafOfSample[i] = leaf;
-                out.residual += c.residual;
-                out.networks += c.samples.empty() ? 0 : 1;
-                return;
-            }
-            const uint32_t child = uint32_t(out.tree.size());
-            out.tree.resize(out.tree.size() + 2);
-            out.tree[at] = {c.axis, c.split, child};
-            (*this)(size_t(c.lower), child);
-            (*this)(size_t(c.upper), child + 1);
+    // Writes cell `id` (and its subtree) at tree node `at`.
+    void emit(size_t id, uint32_t at) {
+        BuildCell& c = cells_[id];
+        if (c.lower < 0) {
+            const uint32_t leaf = out_.leafCount++;
+            out_.tree[at] = {format::kTreeLeaf, 0, leaf};
+            out_.leaves.push_back({c.box, c.depth, uint32_t(c.samples.size()), c.residual});
+            for (uint32_t i : c.samples) out_.leafOfSample[i] = leaf;
+            out_.residual += c.residual;
+            out_.networks += c.samples.empty() ? 0 : 1;
+            return;
         }
-    };
-    Emit{cells, out}(0, 0);
-    out.bytes = bytesOf(out.networks, out.tree.size());
-    return out;
+        const uint32_t child = uint32_t(out_.tree.size());
+        out_.tree.resize(out_.tree.size() + 2);
+        out_.tree[at] = {c.axis, c.split, child};
+        emit(size_t(c.lower), child);
+        emit(size_t(c.upper), child + 1);
+    }
+};
+
+}  // namespace
+
+AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
+                                  const std::vector<float>& learned, const format::Topology& topology,
+                                  const PartitionSettings& settings, const MetadataReserve& reserve, const LeafScorer& scorer) {
+    return Refiner(lattice, samples, learned, topology, settings, reserve).run(scorer);
 }
 
 uint32_t wallRefine(const format::Grid& grid) {

@@ -615,145 +615,139 @@ private:
                             "mesh " + std::to_string(meshIndex) + (mesh.name.empty() ? std::string() : " (" + mesh.name + ")") + " primitive " + std::to_string(p));
     }
 
-    void importPrimitive(const tinygltf::Primitive& prim, const glm::dmat4& world, const std::string& where) {
-        ++scene_.stats.primitives;
-        if (prim.extensions.count("KHR_draco_mesh_compression")) ++scene_.stats.dracoPrimitives;
-        if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
-            prim.mode != TINYGLTF_MODE_TRIANGLE_FAN) {
-            ++scene_.stats.primitivesSkipped;
-            return;  // points and lines have no area: nothing to render
-        }
-        auto attr = [&](const char* name) {
-            auto it = prim.attributes.find(name);
-            return it == prim.attributes.end() ? -1 : it->second;
-        };
-        int posIndex = attr("POSITION");
-        if (posIndex < 0) {
-            warn(where + " has no POSITION attribute; skipped");
-            ++scene_.stats.primitivesSkipped;
-            return;
-        }
-        std::vector<double> pos = readAttribute(prim, "POSITION", 3, where);
-        size_t vertexCount = pos.size() / 3;
-        std::vector<double> nrm, uv0, uv1;
-        if (attr("NORMAL") >= 0) {
-            nrm = readAttribute(prim, "NORMAL", 3, where);
-            if (nrm.size() != pos.size()) fail(where + ": NORMAL and POSITION counts differ");
-        }
-        if (attr("TEXCOORD_0") >= 0) {
-            uv0 = readAttribute(prim, "TEXCOORD_0", 2, where);
-            if (uv0.size() / 2 != vertexCount) fail(where + ": TEXCOORD_0 and POSITION counts differ");
-        }
-        if (attr("TEXCOORD_1") >= 0) {
-            uv1 = readAttribute(prim, "TEXCOORD_1", 2, where);
-            if (uv1.size() / 2 != vertexCount) fail(where + ": TEXCOORD_1 and POSITION counts differ");
-        }
+    // The accessor index of a primitive's attribute, -1 if it has none.
+    static int attributeIndex(const tinygltf::Primitive& prim, const char* name) {
+        auto it = prim.attributes.find(name);
+        return it == prim.attributes.end() ? -1 : it->second;
+    }
 
-        std::vector<double> col, tan;
-        int colComponents = 0;
-        if (attr("COLOR_0") >= 0) {
-            colComponents = tinygltf::GetNumComponentsInType(uint32_t(accessor(attr("COLOR_0"), where + " COLOR_0").type));
-            if (colComponents != 3 && colComponents != 4) fail(where + ": COLOR_0 must be VEC3 or VEC4");
-            col = readAttribute(prim, "COLOR_0", colComponents, where);
-            if (col.size() / size_t(colComponents) != vertexCount) fail(where + ": COLOR_0 and POSITION counts differ");
-            for (double c : col)
+    // A primitive's vertex attributes as read (doubles, in their accessors' layouts), each checked against the
+    // POSITION count; empty where the primitive has none.
+    struct PrimitiveVertices {
+        size_t count = 0;
+        std::vector<double> pos, nrm, uv0, uv1, col, tan;
+        int colComponents = 0;  // 3 or 4 with COLOR_0
+    };
+
+    // POSITION, NORMAL, TEXCOORD_0/1 and COLOR_0 (TANGENT waits for the material: only normal maps use it).
+    PrimitiveVertices readVertices(const tinygltf::Primitive& prim, const std::string& where) {
+        PrimitiveVertices v;
+        v.pos = readAttribute(prim, "POSITION", 3, where);
+        v.count = v.pos.size() / 3;
+        if (attributeIndex(prim, "NORMAL") >= 0) {
+            v.nrm = readAttribute(prim, "NORMAL", 3, where);
+            if (v.nrm.size() != v.pos.size()) fail(where + ": NORMAL and POSITION counts differ");
+        }
+        if (attributeIndex(prim, "TEXCOORD_0") >= 0) {
+            v.uv0 = readAttribute(prim, "TEXCOORD_0", 2, where);
+            if (v.uv0.size() / 2 != v.count) fail(where + ": TEXCOORD_0 and POSITION counts differ");
+        }
+        if (attributeIndex(prim, "TEXCOORD_1") >= 0) {
+            v.uv1 = readAttribute(prim, "TEXCOORD_1", 2, where);
+            if (v.uv1.size() / 2 != v.count) fail(where + ": TEXCOORD_1 and POSITION counts differ");
+        }
+        if (attributeIndex(prim, "COLOR_0") >= 0) {
+            v.colComponents = tinygltf::GetNumComponentsInType(uint32_t(accessor(attributeIndex(prim, "COLOR_0"), where + " COLOR_0").type));
+            if (v.colComponents != 3 && v.colComponents != 4) fail(where + ": COLOR_0 must be VEC3 or VEC4");
+            v.col = readAttribute(prim, "COLOR_0", v.colComponents, where);
+            if (v.col.size() / size_t(v.colComponents) != v.count) fail(where + ": COLOR_0 and POSITION counts differ");
+            for (double c : v.col)
                 if (!std::isfinite(c)) fail(where + ": COLOR_0 has a non-finite value");
         }
-        const uint32_t material = uint32_t(materialIndexFor(prim.material));
-        const Material& mat = scene_.materials[material];
-        const bool normalMapped = mat.normalTexture.valid();
-        if (normalMapped && attr("TANGENT") >= 0) {
-            tan = readAttribute(prim, "TANGENT", 4, where);
-            if (tan.size() / 4 != vertexCount) fail(where + ": TANGENT and POSITION counts differ");
-        }
+        return v;
+    }
 
-        // Vertex indices of the primitive's triangles.
+    // Vertex indices of the primitive's triangles: its indices (or Draco faces), each checked against the
+    // vertex count, or 0, 1, 2, ... without.
+    std::vector<uint32_t> readVertexIndices(const tinygltf::Primitive& prim, size_t vertexCount, const std::string& where) {
         std::vector<uint32_t> idx;
-        if (prim.indices >= 0 || dracoExtension(prim)) {
-            if (prim.indices >= 0) {
-                const tinygltf::Accessor& ia = accessor(prim.indices, where + " indices");
-                if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-                    ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-                    ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-                    fail(where + ": indices must be unsigned byte, short or int");
-            }
-            std::vector<double> raw = readIndices(prim, where);
-            idx.reserve(raw.size());
-            for (size_t i = 0; i < raw.size(); ++i) {
-                if (raw[i] >= double(vertexCount))
-                    fail(where + ": index " + std::to_string(uint64_t(raw[i])) + " at position " + std::to_string(i) +
-                         " is out of range (the primitive has " + std::to_string(vertexCount) + " vertices)");
-                idx.push_back(uint32_t(raw[i]));
-            }
-        } else {
+        if (prim.indices < 0 && !dracoExtension(prim)) {
             idx.resize(vertexCount);
             for (size_t i = 0; i < vertexCount; ++i) idx[i] = uint32_t(i);
+            return idx;
         }
+        if (prim.indices >= 0) {
+            const tinygltf::Accessor& ia = accessor(prim.indices, where + " indices");
+            if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+                ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+                fail(where + ": indices must be unsigned byte, short or int");
+        }
+        std::vector<double> raw = readIndices(prim, where);
+        idx.reserve(raw.size());
+        for (size_t i = 0; i < raw.size(); ++i) {
+            if (raw[i] >= double(vertexCount))
+                fail(where + ": index " + std::to_string(uint64_t(raw[i])) + " at position " + std::to_string(i) +
+                     " is out of range (the primitive has " + std::to_string(vertexCount) + " vertices)");
+            idx.push_back(uint32_t(raw[i]));
+        }
+        return idx;
+    }
+
+    // The triangles of a list, a strip or a fan (in the file's winding).
+    std::vector<glm::uvec3> assembleTriangles(int mode, const std::vector<uint32_t>& idx, const std::string& where) {
         std::vector<glm::uvec3> tris;
-        if (prim.mode == TINYGLTF_MODE_TRIANGLES) {
+        if (mode == TINYGLTF_MODE_TRIANGLES) {
             if (idx.size() % 3 != 0) warn(where + ": index count is not a multiple of 3; the remainder is ignored");
             for (size_t i = 0; i + 2 < idx.size(); i += 3) tris.emplace_back(idx[i], idx[i + 1], idx[i + 2]);
-        } else if (prim.mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
             for (size_t i = 0; i + 2 < idx.size(); ++i)
                 tris.push_back(i % 2 == 0 ? glm::uvec3(idx[i], idx[i + 1], idx[i + 2]) : glm::uvec3(idx[i + 1], idx[i], idx[i + 2]));
         } else {
             for (size_t i = 1; i + 1 < idx.size(); ++i) tris.emplace_back(idx[i], idx[i + 1], idx[0]);
         }
-        scene_.stats.trianglesRead += tris.size();
-        // The flattened scene's size, bounded before anything is emitted (the vertex indices are 32-bit).
+        return tris;
+    }
+
+    // The flattened scene's size, bounded before anything is emitted (the vertex indices are 32-bit).
+    void checkSceneSize(const PrimitiveVertices& pv, size_t triangles, const std::string& where) {
+        scene_.stats.trianglesRead += triangles;
         const uint64_t maxVertices = std::min<uint64_t>(3 * limits_.maxTriangles, std::numeric_limits<uint32_t>::max());
-        const uint64_t vertices = uint64_t(scene_.mesh.positions.size()) + (nrm.empty() ? 3 * uint64_t(tris.size()) : vertexCount);
+        const uint64_t vertices = uint64_t(scene_.mesh.positions.size()) + (pv.nrm.empty() ? 3 * uint64_t(triangles) : pv.count);
         if (scene_.stats.trianglesRead > limits_.maxTriangles || vertices > maxVertices)
             fail(where + ": the flattened scene exceeds " + std::to_string(limits_.maxTriangles) + " triangles (" +
                  std::to_string(scene_.stats.trianglesRead) + " so far, " + std::to_string(scene_.stats.meshInstances) +
                  " mesh instances) or " + std::to_string(maxVertices) + " vertices (" + std::to_string(vertices) +
                  "); raise --max-triangles if the machine has the memory");
+    }
 
-        // Transform to world space (positions in double, then float).
+    // A primitive's vertices in world space: positions (in double, then float), unit normals (zero where
+    // degenerate or absent) and, for normal maps, tangent frames (xyz, w the bitangent sign).
+    struct WorldVertices {
+        std::vector<glm::vec3> p, n;
+        std::vector<glm::vec4> t;
+        bool flipWinding = false;  // the transform mirrors: triangles are emitted with their winding reversed
+    };
+
+    WorldVertices toWorld(const PrimitiveVertices& pv, const glm::dmat4& world, const std::string& where) {
+        WorldVertices w;
         glm::dmat3 normalFromObject = glm::transpose(glm::inverse(glm::dmat3(world)));
-        bool flipWinding = glm::determinant(glm::dmat3(world)) < 0.0;
-        std::vector<glm::vec3> wp(vertexCount), wn(vertexCount, glm::vec3(0.0f));
-        for (size_t v = 0; v < vertexCount; ++v) {
-            glm::dvec3 p(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]);
+        w.flipWinding = glm::determinant(glm::dmat3(world)) < 0.0;
+        w.p.resize(pv.count);
+        w.n.assign(pv.count, glm::vec3(0.0f));
+        for (size_t v = 0; v < pv.count; ++v) {
+            glm::dvec3 p(pv.pos[3 * v], pv.pos[3 * v + 1], pv.pos[3 * v + 2]);
             if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
                 fail(where + ": vertex " + std::to_string(v) + " has a non-finite position");
-            wp[v] = glm::vec3(world * glm::dvec4(p, 1.0));
-            if (!finite3(wp[v])) fail(where + ": vertex " + std::to_string(v) + " is not finite in world space");
-            if (!nrm.empty()) {
-                glm::dvec3 n = normalFromObject * glm::dvec3(nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]);
+            w.p[v] = glm::vec3(world * glm::dvec4(p, 1.0));
+            if (!finite3(w.p[v])) fail(where + ": vertex " + std::to_string(v) + " is not finite in world space");
+            if (!pv.nrm.empty()) {
+                glm::dvec3 n = normalFromObject * glm::dvec3(pv.nrm[3 * v], pv.nrm[3 * v + 1], pv.nrm[3 * v + 2]);
                 double len = glm::length(n);
-                wn[v] = (std::isfinite(len) && len > 0.0) ? glm::vec3(n / len) : glm::vec3(0.0f);
+                w.n[v] = (std::isfinite(len) && len > 0.0) ? glm::vec3(n / len) : glm::vec3(0.0f);
             }
         }
+        return w;
+    }
 
-        TriangleMesh& out = scene_.mesh;
-        bool flat = nrm.empty();
-        if (flat) ++scene_.stats.primitivesWithGeneratedNormals;
-
-        // Tangent frames for normal maps: TANGENT (world space, w flipped with the winding), else generated from
-        // the normal texture's coordinates (per-vertex sums of the triangles' dp/du, the bitangent sign from
-        // dp/dv; +Y of the map towards -v, as glTF defines it).
-        std::vector<glm::vec4> wt;
-        if (normalMapped) {
-            wt.assign(vertexCount, glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
-            if (!tan.empty()) {
-                glm::dmat3 m3(world);
-                for (size_t v = 0; v < vertexCount; ++v) {
-                    glm::dvec3 t = m3 * glm::dvec3(tan[4 * v], tan[4 * v + 1], tan[4 * v + 2]);
-                    double len = glm::length(t);
-                    double w = (tan[4 * v + 3] < 0.0 ? -1.0 : 1.0) * (flipWinding ? -1.0 : 1.0);
-                    wt[v] = std::isfinite(len) && len > 0.0 ? glm::vec4(glm::vec3(t / len), float(w)) : glm::vec4(0, 0, 0, 1);
-                }
-            } else {
-                ++scene_.stats.primitivesWithGeneratedTangents;
-            }
-        }
-        const std::vector<double>& tuv = mat.normalTexture.texCoord == 1 ? uv1 : uv0;
-        auto uvOf = [&](uint32_t v) {
-            return tuv.empty() ? glm::vec2(0.0f) : mat.normalTexture.apply(glm::vec2(tuv[2 * v], tuv[2 * v + 1]));
-        };
+    // Tangents generated from the normal texture's coordinates: dp/du and dp/dv of a triangle, and the frame
+    // they give a normal (+Y of the map towards -v, as glTF defines it).
+    struct GeneratedTangents {
+        const std::vector<glm::vec3>& wp;
+        const std::vector<double>& tuv;  // the normal texture's coordinates (empty: none)
+        const TextureRef& texture;
+        glm::vec2 uvOf(uint32_t v) const { return tuv.empty() ? glm::vec2(0.0f) : texture.apply(glm::vec2(tuv[2 * v], tuv[2 * v + 1])); }
         // dp/du and dp/dv of triangle t (zero for a degenerate mapping).
-        auto triangleTangents = [&](const glm::uvec3& t, glm::vec3& dpdu, glm::vec3& dpdv) {
+        void triangle(const glm::uvec3& t, glm::vec3& dpdu, glm::vec3& dpdv) const {
             glm::vec3 e1 = wp[t.y] - wp[t.x], e2 = wp[t.z] - wp[t.x];
             glm::vec2 d1 = uvOf(t.y) - uvOf(t.x), d2 = uvOf(t.z) - uvOf(t.x);
             float det = d1.x * d2.y - d2.x * d1.y;
@@ -764,51 +758,76 @@ private:
             float r = 1.0f / det;
             dpdu = (e1 * d2.y - e2 * d1.y) * r;
             dpdv = (e2 * d1.x - e1 * d2.x) * r;
-        };
-        auto frame = [](const glm::vec3& n, const glm::vec3& dpdu, const glm::vec3& dpdv) {
+        }
+        static glm::vec4 frame(const glm::vec3& n, const glm::vec3& dpdu, const glm::vec3& dpdv) {
             glm::vec3 t = dpdu - glm::dot(n, dpdu) * n;
             float len = glm::length(t);
             if (!(len > 0.0f) || !std::isfinite(len)) return glm::vec4(0, 0, 0, 1);
             t /= len;
             return glm::vec4(t, glm::dot(glm::cross(n, t), -dpdv) < 0.0f ? -1.0f : 1.0f);
-        };
-        if (normalMapped && tan.empty() && !flat) {
-            std::vector<glm::vec3> su(vertexCount, glm::vec3(0.0f)), sv(vertexCount, glm::vec3(0.0f));
-            for (glm::uvec3 t : tris) {
-                if (flipWinding) std::swap(t.y, t.z);
-                glm::vec3 dpdu, dpdv;
-                triangleTangents(t, dpdu, dpdv);
-                for (uint32_t v : {t.x, t.y, t.z}) {
-                    su[v] += dpdu;
-                    sv[v] += dpdv;
-                }
-            }
-            for (size_t v = 0; v < vertexCount; ++v) wt[v] = frame(wn[v], su[v], sv[v]);
         }
+    };
+
+    // Tangent frames for normal maps: TANGENT (world space, w flipped with the winding), else, for smooth
+    // primitives, generated per vertex (sums of the triangles' dp/du, the bitangent sign from dp/dv); flat
+    // ones get theirs per triangle as they are emitted.
+    void tangentFrames(const PrimitiveVertices& pv, const glm::dmat4& world, const std::vector<glm::uvec3>& tris,
+                       const GeneratedTangents& generated, WorldVertices& w) {
+        w.t.assign(pv.count, glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+        if (!pv.tan.empty()) {
+            glm::dmat3 m3(world);
+            for (size_t v = 0; v < pv.count; ++v) {
+                glm::dvec3 t = m3 * glm::dvec3(pv.tan[4 * v], pv.tan[4 * v + 1], pv.tan[4 * v + 2]);
+                double len = glm::length(t);
+                double sign = (pv.tan[4 * v + 3] < 0.0 ? -1.0 : 1.0) * (w.flipWinding ? -1.0 : 1.0);
+                w.t[v] = std::isfinite(len) && len > 0.0 ? glm::vec4(glm::vec3(t / len), float(sign)) : glm::vec4(0, 0, 0, 1);
+            }
+            return;
+        }
+        ++scene_.stats.primitivesWithGeneratedTangents;
+        if (pv.nrm.empty()) return;
+        std::vector<glm::vec3> su(pv.count, glm::vec3(0.0f)), sv(pv.count, glm::vec3(0.0f));
+        for (glm::uvec3 t : tris) {
+            if (w.flipWinding) std::swap(t.y, t.z);
+            glm::vec3 dpdu, dpdv;
+            generated.triangle(t, dpdu, dpdv);
+            for (uint32_t v : {t.x, t.y, t.z}) {
+                su[v] += dpdu;
+                sv[v] += dpdv;
+            }
+        }
+        for (size_t v = 0; v < pv.count; ++v) w.t[v] = GeneratedTangents::frame(w.n[v], su[v], sv[v]);
+    }
+
+    // Appends the primitive to the scene's mesh. Vertices are emitted per primitive instance; flat-shaded
+    // primitives (no normals) get unshared vertices; degenerate triangles are dropped.
+    void emitPrimitive(const PrimitiveVertices& pv, const WorldVertices& w, const std::vector<glm::uvec3>& tris, uint32_t material,
+                       bool normalMapped, const GeneratedTangents& generated) {
+        TriangleMesh& out = scene_.mesh;
+        const bool flat = pv.nrm.empty();
         // Optional attributes present in the mesh (backfilled with defaults when this is the first primitive).
-        const bool withColors = !col.empty() || !out.colors.empty(), withTangents = normalMapped || !out.tangents.empty();
+        const bool withColors = !pv.col.empty() || !out.colors.empty(), withTangents = normalMapped || !out.tangents.empty();
         if (withColors) out.colors.resize(out.positions.size(), glm::vec4(1.0f));
         if (withTangents) out.tangents.resize(out.positions.size(), glm::vec4(0, 0, 0, 1));
-        // Vertices are emitted per primitive instance; flat-shaded primitives get unshared vertices.
         uint32_t base = uint32_t(out.positions.size());
         auto pushVertex = [&](uint32_t v, const glm::vec3& normal, const glm::vec4& tangent) {
-            out.positions.push_back(wp[v]);
+            out.positions.push_back(w.p[v]);
             out.normals.push_back(normal);
-            out.uv0.push_back(uv0.empty() ? glm::vec2(0.0f) : glm::vec2(uv0[2 * v], uv0[2 * v + 1]));
-            out.uv1.push_back(uv1.empty() ? glm::vec2(0.0f) : glm::vec2(uv1[2 * v], uv1[2 * v + 1]));
+            out.uv0.push_back(pv.uv0.empty() ? glm::vec2(0.0f) : glm::vec2(pv.uv0[2 * v], pv.uv0[2 * v + 1]));
+            out.uv1.push_back(pv.uv1.empty() ? glm::vec2(0.0f) : glm::vec2(pv.uv1[2 * v], pv.uv1[2 * v + 1]));
             if (withColors) {
                 glm::vec4 c(1.0f);
-                if (!col.empty())
-                    for (int k = 0; k < colComponents; ++k) c[k] = float(col[size_t(colComponents) * v + size_t(k)]);
+                if (!pv.col.empty())
+                    for (int k = 0; k < pv.colComponents; ++k) c[k] = float(pv.col[size_t(pv.colComponents) * v + size_t(k)]);
                 out.colors.push_back(glm::clamp(c, 0.0f, 1.0f));
             }
             if (withTangents) out.tangents.push_back(tangent);
         };
         if (!flat)
-            for (size_t v = 0; v < vertexCount; ++v) pushVertex(uint32_t(v), wn[v], normalMapped ? wt[v] : glm::vec4(0, 0, 0, 1));
+            for (size_t v = 0; v < pv.count; ++v) pushVertex(uint32_t(v), w.n[v], normalMapped ? w.t[v] : glm::vec4(0, 0, 0, 1));
         for (glm::uvec3 t : tris) {
-            if (flipWinding) std::swap(t.y, t.z);
-            glm::vec3 e1 = wp[t.y] - wp[t.x], e2 = wp[t.z] - wp[t.x];
+            if (w.flipWinding) std::swap(t.y, t.z);
+            glm::vec3 e1 = w.p[t.y] - w.p[t.x], e2 = w.p[t.z] - w.p[t.x];
             glm::vec3 c = glm::cross(e1, e2);
             float len = glm::length(c);
             if (!(len > 0.0f) || !std::isfinite(len)) {
@@ -818,12 +837,12 @@ private:
             if (flat) {
                 glm::vec3 n = c / len;
                 glm::vec4 tg[3] = {glm::vec4(0, 0, 0, 1), glm::vec4(0, 0, 0, 1), glm::vec4(0, 0, 0, 1)};
-                if (normalMapped && tan.empty()) {
+                if (normalMapped && pv.tan.empty()) {
                     glm::vec3 dpdu, dpdv;
-                    triangleTangents(t, dpdu, dpdv);
-                    tg[0] = tg[1] = tg[2] = frame(n, dpdu, dpdv);
+                    generated.triangle(t, dpdu, dpdv);
+                    tg[0] = tg[1] = tg[2] = GeneratedTangents::frame(n, dpdu, dpdv);
                 } else if (normalMapped) {
-                    tg[0] = wt[t.x], tg[1] = wt[t.y], tg[2] = wt[t.z];
+                    tg[0] = w.t[t.x], tg[1] = w.t[t.y], tg[2] = w.t[t.z];
                 }
                 uint32_t first = uint32_t(out.positions.size());
                 pushVertex(t.x, n, tg[0]);
@@ -835,6 +854,36 @@ private:
             }
             out.materialIds.push_back(material);
         }
+    }
+
+    void importPrimitive(const tinygltf::Primitive& prim, const glm::dmat4& world, const std::string& where) {
+        ++scene_.stats.primitives;
+        if (prim.extensions.count("KHR_draco_mesh_compression")) ++scene_.stats.dracoPrimitives;
+        if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+            prim.mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+            ++scene_.stats.primitivesSkipped;
+            return;  // points and lines have no area: nothing to render
+        }
+        if (attributeIndex(prim, "POSITION") < 0) {
+            warn(where + " has no POSITION attribute; skipped");
+            ++scene_.stats.primitivesSkipped;
+            return;
+        }
+        PrimitiveVertices pv = readVertices(prim, where);
+        const uint32_t material = uint32_t(materialIndexFor(prim.material));
+        const Material& mat = scene_.materials[material];
+        const bool normalMapped = mat.normalTexture.valid();
+        if (normalMapped && attributeIndex(prim, "TANGENT") >= 0) {
+            pv.tan = readAttribute(prim, "TANGENT", 4, where);
+            if (pv.tan.size() / 4 != pv.count) fail(where + ": TANGENT and POSITION counts differ");
+        }
+        const std::vector<glm::uvec3> tris = assembleTriangles(prim.mode, readVertexIndices(prim, pv.count, where), where);
+        checkSceneSize(pv, tris.size(), where);
+        WorldVertices w = toWorld(pv, world, where);
+        if (pv.nrm.empty()) ++scene_.stats.primitivesWithGeneratedNormals;
+        const GeneratedTangents generated{w.p, mat.normalTexture.texCoord == 1 ? pv.uv1 : pv.uv0, mat.normalTexture};
+        if (normalMapped) tangentFrames(pv, world, tris, generated, w);
+        emitPrimitive(pv, w, tris, material, normalMapped, generated);
     }
 
     std::string path_;

@@ -326,30 +326,20 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     return j;
 }
 
-static void writeReportFiles(const ValidationResult& r, const nlohmann::json& bakeStats, const fs::path& dir) {
-    const float exposure = r.settings.exposure;
-    auto both = [&](const std::string& stem, const Image& img) {
-        writeExr((dir / (stem + ".exr")).string(), img);
-        writePng((dir / (stem + ".png")).string(), img, exposure);
-    };
-    both("reference", r.reference);
-    both("neural", r.neural.image);
-    Image sq = squaredDifferenceImage(r.neural.image, r.reference);
-    writeExr((dir / "neural-sqdiff.exr").string(), sq);
-    writePng((dir / "neural-sqdiff.png").string(), sq);
-    writePng((dir / "neural-relerr.png").string(), relativeErrorMap(r.neural.image, r.reference));
-    if (r.baseline) {
-        both("sh-probes", r.baseline->image);
-        Image sb = squaredDifferenceImage(r.baseline->image, r.reference);
-        writeExr((dir / "sh-probes-sqdiff.exr").string(), sb);
-        writePng((dir / "sh-probes-sqdiff.png").string(), sb);
-        writePng((dir / "sh-probes-relerr.png").string(), relativeErrorMap(r.baseline->image, r.reference));
-        writePng((dir / "winner.png").string(), winnerMap(r));
-    }
+namespace {
 
-    nlohmann::json j = reportJson(r, bakeStats);
-    writeText(dir / "report.json", j.dump(1) + "\n");
+// A method's image (EXR and PNG), its squared difference from the reference and its relative error map.
+void writeMethodImages(const fs::path& dir, const std::string& stem, const Image& img, const Image& reference, float exposure) {
+    writeExr((dir / (stem + ".exr")).string(), img);
+    writePng((dir / (stem + ".png")).string(), img, exposure);
+    Image sq = squaredDifferenceImage(img, reference);
+    writeExr((dir / (stem + "-sqdiff.exr")).string(), sq);
+    writePng((dir / (stem + "-sqdiff.png")).string(), sq);
+    writePng((dir / (stem + "-relerr.png")).string(), relativeErrorMap(img, reference));
+}
 
+// convergence.csv: each render's spp, time and error.
+void writeConvergenceCsv(const ValidationResult& r, const fs::path& dir) {
     std::ostringstream csv;
     csv << "method,spp,seconds,relmse,rmse,psnr_db\n";
     auto row = [&](const std::string& name, int spp, double sec, const ImageMetrics& m) {
@@ -360,7 +350,10 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     row("neural", r.settings.neuralSpp, r.neural.seconds, r.neural.metrics);
     if (r.baseline) row("sh-probes", r.settings.neuralSpp, r.baseline->seconds, r.baseline->metrics);
     writeText(dir / "convergence.csv", csv.str());
+}
 
+// The SVG plots: error against run time, against bytes, and the bake's training curve (if `bc` has one).
+void writePlots(const ValidationResult& r, const std::vector<BakeCurvePoint>& bc, const fs::path& dir) {
     std::vector<PlotSeries> series;
     PlotSeries pt{"path tracer (1, 2, 4, ... spp)", "#1f5fbf", {}, true};
     for (const CurvePoint& c : r.curve) pt.points.emplace_back(c.seconds, c.metrics.relMse);
@@ -374,7 +367,6 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
         if (r.baseline) bytes.push_back({"L2 SH probes", "#ff7f0e", {{double(r.baseline->bytes), r.baseline->metrics.relMse}}, false});
         writeText(dir / "error-vs-bytes.svg", svgLogLogPlot("Error against bytes", "bytes", "relMSE against the reference", bytes));
     }
-    std::vector<BakeCurvePoint> bc = bakeTrainingCurve(bakeStats);
     if (!bc.empty()) {
         PlotSeries mean{"mean over voxels", "#d62728", {}, true}, median{"median over voxels", "#9467bd", {}, true};
         for (const BakeCurvePoint& p : bc) {
@@ -384,18 +376,16 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
         writeText(dir / "bake-training.svg",
                   svgLogLogPlot("Bake: held-out error during training", "training time per voxel (s)", "held-out relMSE", {mean, median}));
     }
+}
 
-    // report.html: images, error maps and plots side by side; a script records how many images loaded.
-    std::ostringstream h;
-    auto figure = [&](const std::string& src, const std::string& caption) {
-        h << "<figure><img src=\"" << escape(src) << "\" alt=\"" << escape(caption) << "\"><figcaption>" << escape(caption)
-          << "</figcaption></figure>\n";
-    };
-    auto metricRow = [&](const std::string& name, const ImageMetrics& m, double sec, const std::string& extra) {
-        h << "<tr><td>" << escape(name) << "</td><td>" << fmt("%.4g", m.relMse) << "</td><td>" << fmt("%.4g", m.rmse) << "</td><td>"
-          << (std::isfinite(m.psnr) ? fmt("%.2f", m.psnr) : "inf") << "</td><td>" << fmt("%.3f", sec) << "</td><td>" << extra
-          << "</td></tr>\n";
-    };
+void htmlFigure(std::ostringstream& h, const std::string& src, const std::string& caption) {
+    h << "<figure><img src=\"" << escape(src) << "\" alt=\"" << escape(caption) << "\"><figcaption>" << escape(caption)
+      << "</figcaption></figure>\n";
+}
+
+// report.html's head, its paragraph on the run (scene, asset, reference, its biases and noise), the
+// headline and the images.
+void htmlIntroAndImages(std::ostringstream& h, const ValidationResult& r) {
     h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>nrad validation: " << escape(r.scenePath)
       << "</title>\n<style>body{font-family:sans-serif;margin:24px;max-width:1400px}figure{display:inline-block;margin:6px;"
          "vertical-align:top}figure img{width:300px;image-rendering:pixelated;border:1px solid #ccc}figcaption{font-size:13px;"
@@ -415,19 +405,29 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     h << ". Neural and baseline: " << r.settings.neuralSpp << " primary samples per pixel.</p>\n";
     h << "<p class=\"summary\">" << escape(headlineSentence(r)) << "</p>\n";
     h << "<h2>Images</h2>\n<div>";
-    figure("reference.png", "reference (path traced)");
-    figure("neural.png", "through the neural asset");
-    if (r.baseline) figure("sh-probes.png", "L2 SH probes, same bytes");
+    htmlFigure(h, "reference.png", "reference (path traced)");
+    htmlFigure(h, "neural.png", "through the neural asset");
+    if (r.baseline) htmlFigure(h, "sh-probes.png", "L2 SH probes, same bytes");
     h << "</div><div>";
-    figure("neural-sqdiff.png", "neural: squared difference x10");
-    figure("neural-relerr.png", "neural: relative error, log colour scale 1e-3 (blue) to 1 (red)");
+    htmlFigure(h, "neural-sqdiff.png", "neural: squared difference x10");
+    htmlFigure(h, "neural-relerr.png", "neural: relative error, log colour scale 1e-3 (blue) to 1 (red)");
     if (r.baseline) {
-        figure("sh-probes-sqdiff.png", "SH probes: squared difference x10");
-        figure("sh-probes-relerr.png", "SH probes: relative error, same scale");
-        figure("winner.png", "closer to the reference: green neural, orange SH probes, grey tie");
+        htmlFigure(h, "sh-probes-sqdiff.png", "SH probes: squared difference x10");
+        htmlFigure(h, "sh-probes-relerr.png", "SH probes: relative error, same scale");
+        htmlFigure(h, "winner.png", "closer to the reference: green neural, orange SH probes, grey tie");
     }
-    h << "</div>\n<h2>Error against run time</h2>\n<table><tr><th>method</th><th>relMSE</th><th>RMSE</th><th>PSNR (dB)</th>"
+    h << "</div>\n";
+}
+
+// Error against run time, per render.
+void htmlTimeTable(std::ostringstream& h, const ValidationResult& r) {
+    h << "<h2>Error against run time</h2>\n<table><tr><th>method</th><th>relMSE</th><th>RMSE</th><th>PSNR (dB)</th>"
          "<th>wall time (s)</th><th>notes</th></tr>\n";
+    auto metricRow = [&](const std::string& name, const ImageMetrics& m, double sec, const std::string& extra) {
+        h << "<tr><td>" << escape(name) << "</td><td>" << fmt("%.4g", m.relMse) << "</td><td>" << fmt("%.4g", m.rmse) << "</td><td>"
+          << (std::isfinite(m.psnr) ? fmt("%.2f", m.psnr) : "inf") << "</td><td>" << fmt("%.3f", sec) << "</td><td>" << extra
+          << "</td></tr>\n";
+    };
     for (const CurvePoint& c : r.curve) metricRow("path tracer " + std::to_string(c.spp) + " spp", c.metrics, c.seconds, "");
     auto methodNote = [&](const MethodResult& m) {
         return fmt("%.3f", m.visibilitySeconds) + " s visibility + " + fmt("%.3f", m.evaluationSeconds) + " s evaluation; " +
@@ -438,7 +438,11 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     metricRow("neural", r.neural.metrics, r.neural.seconds, methodNote(r.neural));
     if (r.baseline) metricRow("SH probes", r.baseline->metrics, r.baseline->seconds, methodNote(*r.baseline));
     h << "</table>\n";
-    // Where the error lives.
+}
+
+// Where the error lives: by pixel share and region, then by material (the neural share first: which
+// surfaces carry the error, and how the probes fare on them).
+void htmlErrorTables(std::ostringstream& h, const ValidationResult& r) {
     h << "<h2>Where the error is</h2>\n<table><tr><th>method</th><th>worst 1% of pixels: share of relMSE</th>"
          "<th>median relative error</th><th>99th percentile</th>";
     for (int k = 0; k < kRegionCount; ++k) h << "<th>relMSE: " << kRegionNames[k] << " (pixels; share)</th>";
@@ -453,25 +457,26 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     whereRow("neural", r.neural);
     if (r.baseline) whereRow("SH probes", *r.baseline);
     h << "</table>\n";
-    // By material, the neural share first: which surfaces carry the error, and how the probes fare on them.
-    {
-        const std::vector<size_t> order = materialsByNeuralShare(r);
-        h << "<table><tr><th>material</th><th>pixels</th><th>neural relMSE (share)</th>";
-        if (r.baseline) h << "<th>SH probes relMSE (share)</th><th>SH / neural</th>";
-        h << "</tr>\n";
-        for (size_t k : order) {
-            const RegionError& e = r.neural.byMaterial[k];
-            h << "<tr><td>" << escape(r.materialNames[k]) << "</td><td>" << e.pixels << "</td><td>" << fmt("%.3g", e.relMse) << " ("
-              << fmt("%.1f%%", 100.0 * e.shareOfImage) << ")</td>";
-            if (r.baseline && k < r.baseline->byMaterial.size()) {
-                const RegionError& b = r.baseline->byMaterial[k];
-                h << "<td>" << fmt("%.3g", b.relMse) << " (" << fmt("%.1f%%", 100.0 * b.shareOfImage) << ")</td><td>"
-                  << (e.relMse > 0.0 ? fmt("%.3g", b.relMse / e.relMse) : std::string("-")) << "</td>";
-            }
-            h << "</tr>\n";
+    const std::vector<size_t> order = materialsByNeuralShare(r);
+    h << "<table><tr><th>material</th><th>pixels</th><th>neural relMSE (share)</th>";
+    if (r.baseline) h << "<th>SH probes relMSE (share)</th><th>SH / neural</th>";
+    h << "</tr>\n";
+    for (size_t k : order) {
+        const RegionError& e = r.neural.byMaterial[k];
+        h << "<tr><td>" << escape(r.materialNames[k]) << "</td><td>" << e.pixels << "</td><td>" << fmt("%.3g", e.relMse) << " ("
+          << fmt("%.1f%%", 100.0 * e.shareOfImage) << ")</td>";
+        if (r.baseline && k < r.baseline->byMaterial.size()) {
+            const RegionError& b = r.baseline->byMaterial[k];
+            h << "<td>" << fmt("%.3g", b.relMse) << " (" << fmt("%.1f%%", 100.0 * b.shareOfImage) << ")</td><td>"
+              << (e.relMse > 0.0 ? fmt("%.3g", b.relMse / e.relMse) : std::string("-")) << "</td>";
         }
-        h << "</table>\n";
+        h << "</tr>\n";
     }
+    h << "</table>\n";
+}
+
+// The seams paragraph and the plots.
+void htmlSeamsAndPlots(std::ostringstream& h, const ValidationResult& r, bool bakeCurve) {
     h << "<p>Seams: at " << r.seams.points << " surface points on faces shared by two occupied voxels, the asset's "
       << "radiance on either side differs by a relMSE of " << fmt("%.3g", r.seams.relMse) << " (mean relative jump "
       << fmt("%.3g", r.seams.meanRelativeJump) << "). Networks evaluated per visible surface point: "
@@ -479,71 +484,106 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
       << "% of the points in a blending band).</p>\n";
     h << "<div class=\"plots\"><img src=\"error-vs-time.svg\" alt=\"error against time\">"
          "<img src=\"error-vs-bytes.svg\" alt=\"error against bytes\">";
-    if (!bc.empty()) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
+    if (bakeCurve) h << "<img src=\"bake-training.svg\" alt=\"bake training curve\">";
     h << "</div>\n";
-    if (r.baseline) {
-        const nlohmann::json& c = j["comparison"];  // computed once, for report.json
-        h << "<h2>Neural against SH probes</h2>\n<p>Better overall: <b>" << c["better_overall"].get<std::string>()
-          << "</b>. The neural image is closer to the reference in "
-          << fmt("%.1f", 100.0 * c["pixels_where_neural_is_better"].get<double>()) << "% of the pixels.</p>\n"
-          << "<table><tr><th>reference luminance</th><th>pixels</th><th>neural relMSE</th><th>SH relMSE</th><th>better</th></tr>\n";
-        for (const auto& d : c["by_luminance_decade"])
-            h << "<tr><td>" << fmt("%.0e", d["luminance_from"].get<double>()) << " to " << fmt("%.0e", d["luminance_to"].get<double>())
-              << "</td><td>" << d["pixels"].get<size_t>() << "</td><td>" << fmt("%.4g", d["neural_relmse"].is_number() ? d["neural_relmse"].get<double>() : 0.0)
-              << "</td><td>" << fmt("%.4g", d["baseline_relmse"].is_number() ? d["baseline_relmse"].get<double>() : 0.0) << "</td><td>"
-              << d["better"].get<std::string>() << "</td></tr>\n";
-        h << "</table>\n<p>Baseline: " << r.baselineProbes.x << "x" << r.baselineProbes.y << "x" << r.baselineProbes.z
-          << " probes fitted by least squares to " << r.baselineTrainingSamples << " training samples (" << escape(r.baselineSamplesNote)
-          << "); fit relMSE on those samples " << fmt("%.4g", r.baselineFit.trainRelMse) << ".</p>\n";
-    }
-    if (bakeStats.is_object() && bakeStats.contains("partition") && bakeStats["partition"].is_object()) {
-        // The adaptive partition: its cells, their depth and error, the worst first.
-        const nlohmann::json& p = bakeStats["partition"];
-        std::map<uint64_t, const nlohmann::json*> byLeaf;
-        if (bakeStats.contains("voxels") && bakeStats["voxels"].is_array())
-            for (const auto& v : bakeStats["voxels"])
-                if (v.contains("voxel") && v["voxel"].is_number_unsigned()) byLeaf[v["voxel"].get<uint64_t>()] = &v;
-        std::vector<std::pair<double, const nlohmann::json*>> cells;
-        std::map<int, int> depths;
-        if (p.contains("cells") && p["cells"].is_array())
-            for (const auto& c : p["cells"]) {
-                const uint64_t leaf = c.value("leaf", uint64_t(0));
-                const auto it = byLeaf.find(leaf);
-                const double err = it != byLeaf.end() ? it->second->value("held_out_relmse", 0.0) : -1.0;
-                cells.emplace_back(err, &c);
-                ++depths[c.value("depth", 0)];
-            }
-        std::sort(cells.begin(), cells.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-        h << "<h2>Partition</h2>\n<p>kd-tree of " << p.value("leaves", 0) << " leaves (" << p.value("networks", 0)
-          << " with surface, each a network) on a lattice of ";
-        if (p.contains("lattice") && p["lattice"].is_array() && p["lattice"].size() == 3)
-            h << p["lattice"][0].get<int>() << "x" << p["lattice"][1].get<int>() << "x" << p["lattice"][2].get<int>();
-        h << " voxels, refined under a budget of " << p.value("budget_bytes", uint64_t(0)) << " bytes. Leaves per depth:";
-        for (auto [d, n] : depths) h << " " << d << ": " << n << ";";
-        h << "</p>\n<table><tr><th>leaf</th><th>depth</th><th>lattice box</th><th>samples</th><th>held-out relMSE</th></tr>\n";
-        size_t shown = 0;
-        for (const auto& [err, c] : cells) {
-            if (shown++ == 32) break;
-            const auto& lo = (*c)["lo"];
-            const auto& hi = (*c)["hi"];
-            h << "<tr><td>" << c->value("leaf", 0) << "</td><td>" << c->value("depth", 0) << "</td><td>[" << lo[0] << "," << lo[1]
-              << "," << lo[2] << ") - [" << hi[0] << "," << hi[1] << "," << hi[2] << ")</td><td>" << c->value("samples", 0)
-              << "</td><td>" << (err >= 0.0 ? fmt("%.4g", err) : std::string("no network")) << "</td></tr>\n";
+}
+
+// Neural against SH probes, by luminance decade (`c`: report.json's comparison, computed once).
+void htmlComparison(std::ostringstream& h, const ValidationResult& r, const nlohmann::json& c) {
+    h << "<h2>Neural against SH probes</h2>\n<p>Better overall: <b>" << c["better_overall"].get<std::string>()
+      << "</b>. The neural image is closer to the reference in "
+      << fmt("%.1f", 100.0 * c["pixels_where_neural_is_better"].get<double>()) << "% of the pixels.</p>\n"
+      << "<table><tr><th>reference luminance</th><th>pixels</th><th>neural relMSE</th><th>SH relMSE</th><th>better</th></tr>\n";
+    for (const auto& d : c["by_luminance_decade"])
+        h << "<tr><td>" << fmt("%.0e", d["luminance_from"].get<double>()) << " to " << fmt("%.0e", d["luminance_to"].get<double>())
+          << "</td><td>" << d["pixels"].get<size_t>() << "</td><td>" << fmt("%.4g", d["neural_relmse"].is_number() ? d["neural_relmse"].get<double>() : 0.0)
+          << "</td><td>" << fmt("%.4g", d["baseline_relmse"].is_number() ? d["baseline_relmse"].get<double>() : 0.0) << "</td><td>"
+          << d["better"].get<std::string>() << "</td></tr>\n";
+    h << "</table>\n<p>Baseline: " << r.baselineProbes.x << "x" << r.baselineProbes.y << "x" << r.baselineProbes.z
+      << " probes fitted by least squares to " << r.baselineTrainingSamples << " training samples (" << escape(r.baselineSamplesNote)
+      << "); fit relMSE on those samples " << fmt("%.4g", r.baselineFit.trainRelMse) << ".</p>\n";
+}
+
+// The adaptive partition (from the bake's stats): its cells, their depth and error, the worst first.
+void htmlPartition(std::ostringstream& h, const nlohmann::json& bakeStats) {
+    const nlohmann::json& p = bakeStats["partition"];
+    std::map<uint64_t, const nlohmann::json*> byLeaf;
+    if (bakeStats.contains("voxels") && bakeStats["voxels"].is_array())
+        for (const auto& v : bakeStats["voxels"])
+            if (v.contains("voxel") && v["voxel"].is_number_unsigned()) byLeaf[v["voxel"].get<uint64_t>()] = &v;
+    std::vector<std::pair<double, const nlohmann::json*>> cells;
+    std::map<int, int> depths;
+    if (p.contains("cells") && p["cells"].is_array())
+        for (const auto& c : p["cells"]) {
+            const uint64_t leaf = c.value("leaf", uint64_t(0));
+            const auto it = byLeaf.find(leaf);
+            const double err = it != byLeaf.end() ? it->second->value("held_out_relmse", 0.0) : -1.0;
+            cells.emplace_back(err, &c);
+            ++depths[c.value("depth", 0)];
         }
-        h << "</table>\n<p>The " << std::min<size_t>(32, cells.size()) << " worst of " << cells.size()
-          << " leaves; all of them are in the bake's --stats.</p>\n";
+    std::sort(cells.begin(), cells.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    h << "<h2>Partition</h2>\n<p>kd-tree of " << p.value("leaves", 0) << " leaves (" << p.value("networks", 0)
+      << " with surface, each a network) on a lattice of ";
+    if (p.contains("lattice") && p["lattice"].is_array() && p["lattice"].size() == 3)
+        h << p["lattice"][0].get<int>() << "x" << p["lattice"][1].get<int>() << "x" << p["lattice"][2].get<int>();
+    h << " voxels, refined under a budget of " << p.value("budget_bytes", uint64_t(0)) << " bytes. Leaves per depth:";
+    for (auto [d, n] : depths) h << " " << d << ": " << n << ";";
+    h << "</p>\n<table><tr><th>leaf</th><th>depth</th><th>lattice box</th><th>samples</th><th>held-out relMSE</th></tr>\n";
+    size_t shown = 0;
+    for (const auto& [err, c] : cells) {
+        if (shown++ == 32) break;
+        const auto& lo = (*c)["lo"];
+        const auto& hi = (*c)["hi"];
+        h << "<tr><td>" << c->value("leaf", 0) << "</td><td>" << c->value("depth", 0) << "</td><td>[" << lo[0] << "," << lo[1]
+          << "," << lo[2] << ") - [" << hi[0] << "," << hi[1] << "," << hi[2] << ")</td><td>" << c->value("samples", 0)
+          << "</td><td>" << (err >= 0.0 ? fmt("%.4g", err) : std::string("no network")) << "</td></tr>\n";
     }
-    if (j.contains("bake")) {
+    h << "</table>\n<p>The " << std::min<size_t>(32, cells.size()) << " worst of " << cells.size()
+      << " leaves; all of them are in the bake's --stats.</p>\n";
+}
+
+// The bake's phase times (`b`: report.json's bake entry), then the links to the data and the script that
+// records how many images loaded.
+void htmlBakeAndEnd(std::ostringstream& h, const nlohmann::json* b) {
+    if (b) {
         h << "<h2>Bake</h2>\n<table><tr><th>phase</th><th>seconds</th></tr>\n";
-        if (j["bake"]["seconds"].is_object())
-            for (auto& [k, v] : j["bake"]["seconds"].items())
+        if ((*b)["seconds"].is_object())
+            for (auto& [k, v] : (*b)["seconds"].items())
                 if (v.is_number()) h << "<tr><td>" << escape(k) << "</td><td>" << fmt("%.3f", v.get<double>()) << "</td></tr>\n";
-        h << "<tr><td>total</td><td>" << fmt("%.3f", j["bake"]["total_seconds"].get<double>()) << "</td></tr></table>\n";
+        h << "<tr><td>total</td><td>" << fmt("%.3f", (*b)["total_seconds"].get<double>()) << "</td></tr></table>\n";
     }
     h << "<p>All numbers: <a href=\"report.json\">report.json</a>, <a href=\"convergence.csv\">convergence.csv</a>.</p>\n"
          "<script>window.addEventListener('load',function(){var im=document.images,ok=0;for(var i=0;i<im.length;++i)"
          "if(im[i].complete&&im[i].naturalWidth>0)++ok;document.body.setAttribute('data-images-total',im.length);"
          "document.body.setAttribute('data-images-loaded',ok);});</script>\n</body></html>\n";
+}
+
+}  // namespace
+
+static void writeReportFiles(const ValidationResult& r, const nlohmann::json& bakeStats, const fs::path& dir) {
+    const float exposure = r.settings.exposure;
+    writeExr((dir / "reference.exr").string(), r.reference);
+    writePng((dir / "reference.png").string(), r.reference, exposure);
+    writeMethodImages(dir, "neural", r.neural.image, r.reference, exposure);
+    if (r.baseline) {
+        writeMethodImages(dir, "sh-probes", r.baseline->image, r.reference, exposure);
+        writePng((dir / "winner.png").string(), winnerMap(r));
+    }
+    const nlohmann::json j = reportJson(r, bakeStats);
+    writeText(dir / "report.json", j.dump(1) + "\n");
+    writeConvergenceCsv(r, dir);
+    const std::vector<BakeCurvePoint> bc = bakeTrainingCurve(bakeStats);
+    writePlots(r, bc, dir);
+
+    // report.html: images, error maps and plots side by side; a script records how many images loaded.
+    std::ostringstream h;
+    htmlIntroAndImages(h, r);
+    htmlTimeTable(h, r);
+    htmlErrorTables(h, r);
+    htmlSeamsAndPlots(h, r, !bc.empty());
+    if (r.baseline) htmlComparison(h, r, j["comparison"]);
+    if (bakeStats.is_object() && bakeStats.contains("partition") && bakeStats["partition"].is_object()) htmlPartition(h, bakeStats);
+    htmlBakeAndEnd(h, j.contains("bake") ? &j["bake"] : nullptr);
     writeText(dir / "report.html", h.str());
 }
 

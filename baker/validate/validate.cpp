@@ -358,12 +358,31 @@ double equalErrorTime(const std::vector<CurvePoint>& curve, double relMse, bool&
     return end.metrics.relMse > 0.0 ? end.seconds * end.metrics.relMse / relMse : 0.0;
 }
 
-ValidationResult runValidation(const Scene& scene, const std::string& scenePath, NradAsset asset, const std::string& assetPath,
-                               const ValidateSettings& settings, const std::function<void(const std::string&)>& log) {
-    auto say = [&](const std::string& line) {
+namespace {
+
+// Says a line to the validation's log, if it has one.
+struct Say {
+    const std::function<void(const std::string&)>& log;
+    void operator()(const std::string& line) const {
         if (log) log(line);
-    };
-    ValidationResult r;
+    }
+};
+
+// What every phase of a validation uses: the scene and its tracing, the settings, the log, the result.
+struct ValidationRun {
+    const Scene& scene;
+    const ValidateSettings& settings;
+    const Say say;
+    ValidationResult& r;
+    const Accel& accel;
+    const LightSampler& lights;
+    const PathTracer& tracer;
+    RenderSettings rs;  // the image size and path length every render shares
+};
+
+// The result's description of the run, and the image size (height from the camera's aspect ratio if unset).
+void describeRun(ValidationResult& r, const Scene& scene, const std::string& scenePath, const std::string& assetPath,
+                 const ValidateSettings& settings) {
     r.scenePath = scenePath;
     r.assetPath = assetPath;
     r.environment = scene.environment.describe();
@@ -372,16 +391,12 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     float aspect = camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f;
     r.width = std::max(1, settings.width);
     r.height = settings.height > 0 ? settings.height : std::max(1, int(std::lround(float(r.width) / aspect)));
+}
 
-    Accel accel(scene);
-    LightSampler lights(scene);
-    PathTracer tracer(scene, accel, lights);
-    RenderSettings rs;
-    rs.width = r.width;
-    rs.height = r.height;
-    rs.maxDepth = settings.maxDepth;
-
-    // 1. The reference: given, cached, or rendered (and cached).
+// 1. The reference: given, cached, or rendered (and cached).
+void obtainReference(ValidationRun& v) {
+    ValidationResult& r = v.r;
+    const ValidateSettings& settings = v.settings;
     if (!settings.referenceImage.empty()) {
         r.reference = readExr(settings.referenceImage);
         if (r.reference.width != r.width || r.reference.height != r.height)
@@ -389,125 +404,138 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
                                      std::to_string(r.reference.height) + ", the validation renders " + std::to_string(r.width) +
                                      "x" + std::to_string(r.height));
         r.referenceSource = settings.referenceImage;
-    } else {
-        std::string key = referenceKey(scene, settings, r.width, r.height);
-        if (!settings.cacheDir.empty()) r.referenceCacheFile = (fs::path(settings.cacheDir) / ("reference-" + key + ".exr")).string();
-        if (!r.referenceCacheFile.empty() && fs::exists(r.referenceCacheFile)) {
-            try {
-                Image cached = readExr(r.referenceCacheFile);
-                if (cached.width == r.width && cached.height == r.height) {
-                    r.reference = std::move(cached);
-                    r.referenceSource = "cache";
-                }
-            } catch (const std::exception&) {
-                // unreadable cache entry: render again and replace it
+        return;
+    }
+    std::string key = referenceKey(v.scene, settings, r.width, r.height);
+    if (!settings.cacheDir.empty()) r.referenceCacheFile = (fs::path(settings.cacheDir) / ("reference-" + key + ".exr")).string();
+    if (!r.referenceCacheFile.empty() && fs::exists(r.referenceCacheFile)) {
+        try {
+            Image cached = readExr(r.referenceCacheFile);
+            if (cached.width == r.width && cached.height == r.height) {
+                r.reference = std::move(cached);
+                r.referenceSource = "cache";
             }
-        }
-        if (r.referenceSource.empty()) {
-            say("reference: path tracing " + std::to_string(r.width) + "x" + std::to_string(r.height) + " at " +
-                std::to_string(settings.referenceSpp) + " spp, path length " +
-                (settings.maxDepth ? std::to_string(settings.maxDepth) : std::string("unbounded")));
-            RenderSettings ref = rs;
-            ref.spp = settings.referenceSpp;
-            ref.seed = settings.seed;
-            RenderStats st;
-            r.reference = tracer.render(camera, ref, &st);
-            r.referenceSeconds = st.seconds;
-            r.referenceSource = "rendered";
-            if (!r.referenceCacheFile.empty()) {
-                fs::create_directories(settings.cacheDir);
-                writeExr(r.referenceCacheFile, r.reference);
-            }
-        } else {
-            say("reference: from the cache, " + r.referenceCacheFile);
+        } catch (const std::exception&) {
+            // unreadable cache entry: render again and replace it
         }
     }
+    if (!r.referenceSource.empty()) {
+        v.say("reference: from the cache, " + r.referenceCacheFile);
+        return;
+    }
+    v.say("reference: path tracing " + std::to_string(r.width) + "x" + std::to_string(r.height) + " at " +
+          std::to_string(settings.referenceSpp) + " spp, path length " +
+          (settings.maxDepth ? std::to_string(settings.maxDepth) : std::string("unbounded")));
+    RenderSettings ref = v.rs;
+    ref.spp = settings.referenceSpp;
+    ref.seed = settings.seed;
+    RenderStats st;
+    r.reference = v.tracer.render(settings.camera, ref, &st);
+    r.referenceSeconds = st.seconds;
+    r.referenceSource = "rendered";
+    if (!r.referenceCacheFile.empty()) {
+        fs::create_directories(settings.cacheDir);
+        writeExr(r.referenceCacheFile, r.reference);
+    }
+}
 
-    // 2. The path tracer's convergence against the reference, with an independent seed.
-    Image lastCurveImage;  // for the reference's block noise, once the surface pixels are known
+// 2. The path tracer's convergence against the reference, with an independent seed, and the reference's
+// noise estimated from it. Returns the curve's last image (for the reference's block noise, once the surface
+// pixels are known).
+Image convergenceCurve(ValidationRun& v) {
+    ValidationResult& r = v.r;
+    const ValidateSettings& settings = v.settings;
+    Image lastCurveImage;
     for (long long spp = 1; spp <= std::max(1, settings.curveMaxSpp); spp *= 2) {
-        RenderSettings c = rs;
+        RenderSettings c = v.rs;
         c.spp = int(spp);
         c.seed = settings.seed + 1;
         RenderStats st;
-        Image img = tracer.render(camera, c, &st);
+        Image img = v.tracer.render(settings.camera, c, &st);
         r.curve.push_back({int(spp), st.seconds, compareImages(img, r.reference, settings.exposure)});
         char line[160];
         std::snprintf(line, sizeof line, "path tracer %4lld spp: %.3f s, relMSE %.4g", spp, st.seconds, r.curve.back().metrics.relMse);
-        say(line);
+        v.say(line);
         lastCurveImage = std::move(img);
     }
-
     if (settings.referenceImage.empty()) {
         r.referenceNoise = referenceNoise(r.curve, settings.referenceSpp);
         char line[200];
         std::snprintf(line, sizeof line, "reference noise: about %.3g of every relMSE against it (from the curve's %d spp point)",
                       r.referenceNoise, r.curve.empty() ? 0 : r.curve.back().spp);
-        say(line);
+        v.say(line);
     }
+    return lastCurveImage;
+}
 
-    // 3. Through the asset, as an engine would (the public runtime API).
-    NradAssetInfo info;
-    if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
-    // The asset's partition: from its file (a kd-tree needs it); an asset given only in memory is a grid,
-    // whose partition its info holds.
-    eval::Partition partition;
-    if (!assetPath.empty() && std::filesystem::is_regular_file(assetPath)) {
-        partition = assetPartition(assetPath);
-    } else {
-        if (info.contentFlags & NRAD_CONTENT_TREE) throw std::runtime_error("a kd-tree asset must be validated from its file");
-        format::Grid g;
-        for (int k = 0; k < 3; ++k) {
-            g.lower[k] = info.gridLower[k];
-            g.upper[k] = info.gridUpper[k];
-            g.dims[k] = info.gridDims[k];
-        }
-        partition = eval::Partition(g, info.blendBand, {}, 0);
+// The asset's partition: from its file (a kd-tree needs it); an asset given only in memory is a grid,
+// whose partition its info holds.
+eval::Partition partitionOf(const NradAssetInfo& info, const std::string& assetPath) {
+    if (!assetPath.empty() && std::filesystem::is_regular_file(assetPath)) return assetPartition(assetPath);
+    if (info.contentFlags & NRAD_CONTENT_TREE) throw std::runtime_error("a kd-tree asset must be validated from its file");
+    format::Grid g;
+    for (int k = 0; k < 3; ++k) {
+        g.lower[k] = info.gridLower[k];
+        g.upper[k] = info.gridUpper[k];
+        g.dims[k] = info.gridDims[k];
     }
-    const FirstHits hits = firstHits(scene, accel, camera, r.width, r.height, partition);
+    return eval::Partition(g, info.blendBand, {}, 0);
+}
+
+// What each pixel's centre sees (region, material, cell, surface), the reference's block noise (from the
+// curve's last image, now that the surface pixels are known) and the materials' names.
+void mapPixels(ValidationRun& v, const FirstHits& hits, const Image& lastCurveImage) {
+    ValidationResult& r = v.r;
     r.regionOfPixel = pixelRegions(hits);
     r.materialOfPixel = hits.material;
     r.cellOfPixel = hits.voxel;
     r.surfaceOfPixel.assign(hits.material.size(), 0);
     for (size_t i = 0; i < hits.material.size(); ++i) r.surfaceOfPixel[i] = hits.material[i] >= 0 && !hits.emitter[i];
-    if (settings.referenceImage.empty() && !r.curve.empty() && lastCurveImage.width == r.reference.width &&
+    if (v.settings.referenceImage.empty() && !r.curve.empty() && lastCurveImage.width == r.reference.width &&
         lastCurveImage.height == r.reference.height) {
         const BlockFigure curveBlocks = blockFigure(lastCurveImage, r.reference, r.surfaceOfPixel, std::max(1, r.width / 16));
-        if (curveBlocks.blocks > 0) r.referenceBlockNoise = referenceBlockNoise(curveBlocks.rms, r.curve.back().spp, settings.referenceSpp);
+        if (curveBlocks.blocks > 0) r.referenceBlockNoise = referenceBlockNoise(curveBlocks.rms, r.curve.back().spp, v.settings.referenceSpp);
     }
-    lastCurveImage = Image();
-    for (size_t k = 0; k < scene.materials.size(); ++k)
-        r.materialNames.push_back(scene.materials[k].name.empty() ? "material " + std::to_string(k) : scene.materials[k].name);
+    for (size_t k = 0; k < v.scene.materials.size(); ++k)
+        r.materialNames.push_back(v.scene.materials[k].name.empty() ? "material " + std::to_string(k) : v.scene.materials[k].name);
+}
+
+// The seam figure, said.
+void measureSeams(ValidationRun& v, const FirstHits& hits, const eval::Partition& partition, NradAsset asset) {
+    ValidationResult& r = v.r;
     r.seams = seamFigure(hits, partition, asset);
-    {
-        char line[320];
-        std::snprintf(line, sizeof line,
-                      "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g; "
-                      "%.3g network evaluations per visible point (%.1f%% blended)",
-                      r.seams.points, r.seams.relMse, r.seams.meanRelativeJump, r.seams.evaluationsPerPoint,
-                      100.0 * r.seams.blendedShare);
-        say(line);
-    }
-    RenderSettings fh = rs;
-    fh.spp = settings.neuralSpp;
-    fh.seed = settings.seed;
-    {
-        MethodResult m;
-        m.name = "neural";
-        NeuralRenderStats st;
-        if (NradStatus s = renderThroughAsset(scene, accel, asset, camera, fh, m.image, &st); s != NRAD_OK)
-            throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
-        score(m, st, r, settings.exposure);
-        // The networks' weights and, for an adaptive asset, its tree's nodes (8 bytes each).
-        m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4) +
-                  partition.tree.size() * 8;
-        equalError(m, r.curve);
-        r.neural = std::move(m);
-        char line[200];
-        std::snprintf(line, sizeof line, "neural (%d spp): %.3g s (evaluation %.3g s), relMSE %.4g", settings.neuralSpp,
-                      r.neural.seconds, r.neural.evaluationSeconds, r.neural.metrics.relMse);
-        say(line);
-    }
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "seams: %zu points on shared voxel faces, relMSE across them %.4g, mean relative jump %.4g; "
+                  "%.3g network evaluations per visible point (%.1f%% blended)",
+                  r.seams.points, r.seams.relMse, r.seams.meanRelativeJump, r.seams.evaluationsPerPoint, 100.0 * r.seams.blendedShare);
+    v.say(line);
+}
+
+// 3. Through the asset, as an engine would (the public runtime API): rendered at first hits and scored.
+void renderNeural(ValidationRun& v, NradAsset asset, const std::string& assetPath, const NradAssetInfo& info,
+                  const eval::Partition& partition, const RenderSettings& fh) {
+    ValidationResult& r = v.r;
+    MethodResult m;
+    m.name = "neural";
+    NeuralRenderStats st;
+    if (NradStatus s = renderThroughAsset(v.scene, v.accel, asset, v.settings.camera, fh, m.image, &st); s != NRAD_OK)
+        throw std::runtime_error(assetPath + ": evaluation failed: " + nradStatusString(s));
+    score(m, st, r, v.settings.exposure);
+    // The networks' weights and, for an adaptive asset, its tree's nodes (8 bytes each).
+    m.bytes = size_t(info.occupiedVoxels) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4) + partition.tree.size() * 8;
+    equalError(m, r.curve);
+    r.neural = std::move(m);
+    char line[200];
+    std::snprintf(line, sizeof line, "neural (%d spp): %.3g s (evaluation %.3g s), relMSE %.4g", v.settings.neuralSpp, r.neural.seconds,
+                  r.neural.evaluationSeconds, r.neural.metrics.relMse);
+    v.say(line);
+}
+
+// The asset's metadata, and the notes on truncated light transport (the reference's cut, the bake's).
+void readMetadataAndBias(ValidationRun& v, NradAsset asset) {
+    ValidationResult& r = v.r;
+    const ValidateSettings& settings = v.settings;
     const char* json = nullptr;
     size_t length = 0;
     if (nradGetMetadata(asset, &json, &length) == NRAD_OK && length > 0)
@@ -526,133 +554,195 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
                                   (settings.maxDepth == 0 ? std::string(", a bias in the figures against the unbounded reference")
                                                           : std::string()));
     }
-    for (const std::string& note : r.biasNotes) say("bias: " + note);
+    for (const std::string& note : r.biasNotes) v.say("bias: " + note);
+}
 
-    // 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
-    if (settings.baseline) {
-        auto t0 = clock_type::now();
-        SampleSettings ss = defaultBakeSamples();  // a bake's at the defaults
-        glm::uvec3 dims(info.gridDims[0], info.gridDims[1], info.gridDims[2]);  // the sampling grid (its floor)
-        const nlohmann::json& bake = r.assetMetadata.is_object() ? r.assetMetadata.value("bake", nlohmann::json()) : nlohmann::json();
-        if (bake.is_object()) {
-            ss.points = bake.value("points", ss.points);
-            ss.paths = bake.value("paths", ss.paths);
-            ss.maxDepth = bake.value("max_depth", ss.maxDepth);
-            ss.seed = bake.value("seed", ss.seed);
-            ss.minSamplesPerVoxel = bake.value("min_samples_per_voxel", ss.minSamplesPerVoxel);
-            const nlohmann::json g = bake.value("grid", nlohmann::json());  // a kd-tree's lattice is not the sampling grid
-            if (g.is_array() && g.size() == 3) dims = glm::uvec3(g[0].get<uint32_t>(), g[1].get<uint32_t>(), g[2].get<uint32_t>());
-            r.baselineSamplesNote = "the bake's own settings, from the asset's metadata";
-            const nlohmann::json training = bake.value("training", nlohmann::json());
-            if (training.is_object() && training.value("method", std::string()) == "integral") {
-                // Trained within the integral equation: its own samples are one-bounce targets against its
-                // networks, of no use to probes, and its start's few paths would handicap them. The probes get
-                // what a Monte Carlo bake at the defaults would have given them.
-                const SampleSettings defaults = defaultBakeSamples();
-                ss.points = defaults.points;
-                ss.paths = defaults.paths;
-                ss.maxDepth = 0;
-                r.baselineSamplesNote = "Monte Carlo samples at the bake defaults, unbounded (the asset was trained within the integral equation)";
-            }
-        } else {
-            r.baselineSamplesNote = "default bake settings (the asset has no metadata)";
-        }
-        // The probes first: the training budget follows their count.
-        const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
-        const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
-        r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
-        const uint64_t probeCount = uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z;
-        if (settings.baselinePointsPerProbe > 0) {
-            const uint64_t budget = std::max<uint64_t>(settings.baselineMinPoints, uint64_t(settings.baselinePointsPerProbe) * probeCount);
-            if (uint64_t(ss.points) > budget) {
-                // The first points of the same sequence: a subset of the very points the networks learnt from.
-                ss.points = uint32_t(budget);
-                r.baselineSamplesNote += "; its first " + std::to_string(ss.points) + " points (at most max(" +
-                                         std::to_string(settings.baselineMinPoints) + ", " + std::to_string(settings.baselinePointsPerProbe) +
-                                         " per probe))";
-            }
-        }
-        if (settings.baselinePathsPerProbe > 0 && ss.points > 0) {
-            const uint64_t budget = std::max<uint64_t>(settings.baselineMinPaths, uint64_t(settings.baselinePathsPerProbe) * probeCount);
-            const uint32_t paths = uint32_t(std::clamp<uint64_t>(budget / ss.points, 1, ss.paths));
-            if (paths < ss.paths) {
-                // The same points, each with fewer paths: least squares averages the noise over a probe's points.
-                r.baselineSamplesNote += "; " + std::to_string(paths) + " paths a point, not " + std::to_string(ss.paths) + " (at most max(" +
-                                         std::to_string(settings.baselineMinPaths) + ", " + std::to_string(settings.baselinePathsPerProbe) +
-                                         " per probe) paths)";
-                ss.paths = paths;
-            }
-        }
-        // No extra paths for noisy targets: least squares averages a probe's noise over its points, and the
-        // extra paths cost time for no better probes (docs/usage.md, "Baseline"). The paths budget above
-        // counts every path.
-        ss.extraPathsFactor = 1;
-        VoxelGrid grid(scene.bounds, dims);
-        SurfacePieces pieces(scene.mesh, grid);
-        SampleStats sst;
-        say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths, for " +
-            std::to_string(probeCount) + " probes)");
-        // Progress lines at every tenth, with the time since the baseline began (the sampler calls from its
-        // worker threads).
-        std::mutex progressMutex;
-        auto tenths = [&](const char* what) {
-            return [&, what, last = 0](double fraction) mutable {
-                std::lock_guard<std::mutex> lock(progressMutex);
-                const int tenth = std::min(10, int(fraction * 10.0 + 1e-9));
-                if (tenth <= last) return;
-                last = tenth;
-                char line[120];
-                std::snprintf(line, sizeof line, "baseline: %s %d%% (%.1f s)", what, 10 * tenth, since(t0));
-                say(line);
-            };
-        };
-        // Trained like the asset's networks: without the direct light of lights the engine draws.
-        PathTracer baselineTracer(scene, accel, lights);
-        baselineTracer.setExcludeEngineDrawnDirect(true);
-        baselineTracer.setRouletteThreshold(kTrainingRouletteThreshold);
-        std::vector<TrainingSample> samples =
-            generateTrainingSamples(scene, baselineTracer, grid, pieces, ss, sst, std::function<void(double)>(tenths("sampling")));
-        const double samplingSeconds = since(t0);
-        // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
-        // probes store lighting and multiply by the albedo), so both are shaded alike.
-        if (info.contentFlags & NRAD_CONTENT_DEMODULATED)
-            for (TrainingSample& t : samples) t.radiance /= demodulationDivisor(t);
-        r.baselineTrainingSamples = samples.size();
-        r.baselineTrainingPaths = (sst.points + sst.floorPoints + sst.noisyPoints * (ss.extraPathsFactor - 1)) * ss.paths;
-        say("baseline: fitting " + std::to_string(r.baselineProbes.x) + "x" + std::to_string(r.baselineProbes.y) + "x" +
-            std::to_string(r.baselineProbes.z) + " probes to " + std::to_string(samples.size()) + " samples");
-        ShProbeGrid probes = fitShProbeGrid(samples, lower, upper, r.baselineProbes, &r.baselineFit, 1e-4,
-                                            std::function<void(double)>(tenths("fit")));
-        r.baselineSeconds = since(t0);
-        {
-            char line[160];
-            std::snprintf(line, sizeof line, "baseline: %.1f s (sampling %.1f s, fit %.1f s, %d CG iterations)", r.baselineSeconds,
-                          samplingSeconds, r.baselineSeconds - samplingSeconds, r.baselineFit.iterations);
-            say(line);
-        }
-        FirstHitEvaluator evaluate = [&probes](size_t n, const float* p, const float* /*normals*/, const float* d, float* rgb,
-                                               uint8_t* flags) {
-            for (size_t i = 0; i < n; ++i) {
-                glm::vec3 L = probes.evaluate({p[3 * i], p[3 * i + 1], p[3 * i + 2]}, {d[3 * i], d[3 * i + 1], d[3 * i + 2]});
-                for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(L[c]) ? L[c] : 0.0f;
-                flags[i] = NRAD_POINT_OK;
-            }
-            return NRAD_OK;
-        };
-        MethodResult m;
-        m.name = "sh-probes";
-        NeuralRenderStats st;
-        renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, fh, m.image, &st);
-        score(m, st, r, settings.exposure);
-        m.bytes = probes.bytes();
-        equalError(m, r.curve);
-        r.baseline = std::move(m);
-        char line[200];
-        std::snprintf(line, sizeof line, "baseline: %ux%ux%u L2 SH probes (%zu bytes), fit relMSE %.4g, image relMSE %.4g",
-                      r.baselineProbes.x, r.baselineProbes.y, r.baselineProbes.z, r.baseline->bytes, r.baselineFit.trainRelMse,
-                      r.baseline->metrics.relMse);
-        say(line);
+// The baseline's sample settings: the bake's own (from the asset's metadata) or the defaults; `dims` receives
+// the sampling grid (the bake's grid, else the asset's).
+SampleSettings bakeSampleSettings(ValidationResult& r, const NradAssetInfo& info, glm::uvec3& dims) {
+    SampleSettings ss = defaultBakeSamples();  // a bake's at the defaults
+    dims = glm::uvec3(info.gridDims[0], info.gridDims[1], info.gridDims[2]);  // the sampling grid (its floor)
+    const nlohmann::json& bake = r.assetMetadata.is_object() ? r.assetMetadata.value("bake", nlohmann::json()) : nlohmann::json();
+    if (!bake.is_object()) {
+        r.baselineSamplesNote = "default bake settings (the asset has no metadata)";
+        return ss;
     }
+    ss.points = bake.value("points", ss.points);
+    ss.paths = bake.value("paths", ss.paths);
+    ss.maxDepth = bake.value("max_depth", ss.maxDepth);
+    ss.seed = bake.value("seed", ss.seed);
+    ss.minSamplesPerVoxel = bake.value("min_samples_per_voxel", ss.minSamplesPerVoxel);
+    const nlohmann::json g = bake.value("grid", nlohmann::json());  // a kd-tree's lattice is not the sampling grid
+    if (g.is_array() && g.size() == 3) dims = glm::uvec3(g[0].get<uint32_t>(), g[1].get<uint32_t>(), g[2].get<uint32_t>());
+    r.baselineSamplesNote = "the bake's own settings, from the asset's metadata";
+    const nlohmann::json training = bake.value("training", nlohmann::json());
+    if (training.is_object() && training.value("method", std::string()) == "integral") {
+        // Trained within the integral equation: its own samples are one-bounce targets against its
+        // networks, of no use to probes, and its start's few paths would handicap them. The probes get
+        // what a Monte Carlo bake at the defaults would have given them.
+        const SampleSettings defaults = defaultBakeSamples();
+        ss.points = defaults.points;
+        ss.paths = defaults.paths;
+        ss.maxDepth = 0;
+        r.baselineSamplesNote = "Monte Carlo samples at the bake defaults, unbounded (the asset was trained within the integral equation)";
+    }
+    return ss;
+}
+
+// The baseline's training budget for `probeCount` probes (kBaselinePointsPerProbe says why): the first
+// points of the sequence, then fewer paths a point.
+void capBaselineBudget(ValidationResult& r, const ValidateSettings& settings, uint64_t probeCount, SampleSettings& ss) {
+    if (settings.baselinePointsPerProbe > 0) {
+        const uint64_t budget = std::max<uint64_t>(settings.baselineMinPoints, uint64_t(settings.baselinePointsPerProbe) * probeCount);
+        if (uint64_t(ss.points) > budget) {
+            // The first points of the same sequence: a subset of the very points the networks learnt from.
+            ss.points = uint32_t(budget);
+            r.baselineSamplesNote += "; its first " + std::to_string(ss.points) + " points (at most max(" +
+                                     std::to_string(settings.baselineMinPoints) + ", " + std::to_string(settings.baselinePointsPerProbe) +
+                                     " per probe))";
+        }
+    }
+    if (settings.baselinePathsPerProbe > 0 && ss.points > 0) {
+        const uint64_t budget = std::max<uint64_t>(settings.baselineMinPaths, uint64_t(settings.baselinePathsPerProbe) * probeCount);
+        const uint32_t paths = uint32_t(std::clamp<uint64_t>(budget / ss.points, 1, ss.paths));
+        if (paths < ss.paths) {
+            // The same points, each with fewer paths: least squares averages the noise over a probe's points.
+            r.baselineSamplesNote += "; " + std::to_string(paths) + " paths a point, not " + std::to_string(ss.paths) + " (at most max(" +
+                                     std::to_string(settings.baselineMinPaths) + ", " + std::to_string(settings.baselinePathsPerProbe) +
+                                     " per probe) paths)";
+            ss.paths = paths;
+        }
+    }
+    // No extra paths for noisy targets: least squares averages a probe's noise over its points, and the
+    // extra paths cost time for no better probes (docs/usage.md, "Baseline"). The paths budget above
+    // counts every path.
+    ss.extraPathsFactor = 1;
+}
+
+// The baseline's training samples (traced like the asset's networks' own) and the probes fitted to them,
+// with progress lines at every tenth and the time since t0, when the baseline began.
+ShProbeGrid fitBaseline(ValidationRun& v, const NradAssetInfo& info, const SampleSettings& ss, const glm::uvec3& dims,
+                        clock_type::time_point t0) {
+    ValidationResult& r = v.r;
+    const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+    const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+    const uint64_t probeCount = uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z;
+    VoxelGrid grid(v.scene.bounds, dims);
+    SurfacePieces pieces(v.scene.mesh, grid);
+    SampleStats sst;
+    v.say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths, for " +
+          std::to_string(probeCount) + " probes)");
+    // Progress lines at every tenth (the sampler calls from its worker threads).
+    std::mutex progressMutex;
+    auto tenths = [&](const char* what) {
+        return [&, what, last = 0](double fraction) mutable {
+            std::lock_guard<std::mutex> lock(progressMutex);
+            const int tenth = std::min(10, int(fraction * 10.0 + 1e-9));
+            if (tenth <= last) return;
+            last = tenth;
+            char line[120];
+            std::snprintf(line, sizeof line, "baseline: %s %d%% (%.1f s)", what, 10 * tenth, since(t0));
+            v.say(line);
+        };
+    };
+    // Trained like the asset's networks: without the direct light of lights the engine draws.
+    PathTracer baselineTracer(v.scene, v.accel, v.lights);
+    baselineTracer.setExcludeEngineDrawnDirect(true);
+    baselineTracer.setRouletteThreshold(kTrainingRouletteThreshold);
+    std::vector<TrainingSample> samples =
+        generateTrainingSamples(v.scene, baselineTracer, grid, pieces, ss, sst, std::function<void(double)>(tenths("sampling")));
+    const double samplingSeconds = since(t0);
+    // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
+    // probes store lighting and multiply by the albedo), so both are shaded alike.
+    if (info.contentFlags & NRAD_CONTENT_DEMODULATED)
+        for (TrainingSample& t : samples) t.radiance /= demodulationDivisor(t);
+    r.baselineTrainingSamples = samples.size();
+    r.baselineTrainingPaths = (sst.points + sst.floorPoints + sst.noisyPoints * (ss.extraPathsFactor - 1)) * ss.paths;
+    v.say("baseline: fitting " + std::to_string(r.baselineProbes.x) + "x" + std::to_string(r.baselineProbes.y) + "x" +
+          std::to_string(r.baselineProbes.z) + " probes to " + std::to_string(samples.size()) + " samples");
+    ShProbeGrid probes =
+        fitShProbeGrid(samples, lower, upper, r.baselineProbes, &r.baselineFit, 1e-4, std::function<void(double)>(tenths("fit")));
+    r.baselineSeconds = since(t0);
+    char line[160];
+    std::snprintf(line, sizeof line, "baseline: %.1f s (sampling %.1f s, fit %.1f s, %d CG iterations)", r.baselineSeconds,
+                  samplingSeconds, r.baselineSeconds - samplingSeconds, r.baselineFit.iterations);
+    v.say(line);
+    return probes;
+}
+
+// The probes' first-hit render, scored like the asset's.
+void renderBaseline(ValidationRun& v, const ShProbeGrid& probes, const NradAssetInfo& info, const RenderSettings& fh) {
+    ValidationResult& r = v.r;
+    FirstHitEvaluator evaluate = [&probes](size_t n, const float* p, const float* /*normals*/, const float* d, float* rgb,
+                                           uint8_t* flags) {
+        for (size_t i = 0; i < n; ++i) {
+            glm::vec3 L = probes.evaluate({p[3 * i], p[3 * i + 1], p[3 * i + 2]}, {d[3 * i], d[3 * i + 1], d[3 * i + 2]});
+            for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(L[c]) ? L[c] : 0.0f;
+            flags[i] = NRAD_POINT_OK;
+        }
+        return NRAD_OK;
+    };
+    MethodResult m;
+    m.name = "sh-probes";
+    NeuralRenderStats st;
+    renderFirstHit(v.scene, v.accel, evaluate, info.contentFlags, v.settings.camera, fh, m.image, &st);
+    score(m, st, r, v.settings.exposure);
+    m.bytes = probes.bytes();
+    equalError(m, r.curve);
+    r.baseline = std::move(m);
+    char line[200];
+    std::snprintf(line, sizeof line, "baseline: %ux%ux%u L2 SH probes (%zu bytes), fit relMSE %.4g, image relMSE %.4g", r.baselineProbes.x,
+                  r.baselineProbes.y, r.baselineProbes.z, r.baseline->bytes, r.baselineFit.trainRelMse, r.baseline->metrics.relMse);
+    v.say(line);
+}
+
+// 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
+void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettings& fh) {
+    ValidationResult& r = v.r;
+    auto t0 = clock_type::now();
+    glm::uvec3 dims;
+    SampleSettings ss = bakeSampleSettings(r, info, dims);
+    // The probes first: the training budget follows their count.
+    const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+    const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+    r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
+    capBaselineBudget(r, v.settings, uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z, ss);
+    const ShProbeGrid probes = fitBaseline(v, info, ss, dims, t0);
+    renderBaseline(v, probes, info, fh);
+}
+
+}  // namespace
+
+ValidationResult runValidation(const Scene& scene, const std::string& scenePath, NradAsset asset, const std::string& assetPath,
+                               const ValidateSettings& settings, const std::function<void(const std::string&)>& log) {
+    ValidationResult r;
+    describeRun(r, scene, scenePath, assetPath, settings);
+    Accel accel(scene);
+    LightSampler lights(scene);
+    PathTracer tracer(scene, accel, lights);
+    ValidationRun v{scene, settings, Say{log}, r, accel, lights, tracer, RenderSettings()};
+    v.rs.width = r.width;
+    v.rs.height = r.height;
+    v.rs.maxDepth = settings.maxDepth;
+
+    obtainReference(v);
+    Image lastCurveImage = convergenceCurve(v);
+
+    // 3. Through the asset, as an engine would (the public runtime API).
+    NradAssetInfo info;
+    if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) throw std::runtime_error(nradStatusString(st));
+    const eval::Partition partition = partitionOf(info, assetPath);
+    const FirstHits hits = firstHits(scene, accel, settings.camera, r.width, r.height, partition);
+    mapPixels(v, hits, lastCurveImage);
+    lastCurveImage = Image();
+    measureSeams(v, hits, partition, asset);
+    RenderSettings fh = v.rs;
+    fh.spp = settings.neuralSpp;
+    fh.seed = settings.seed;
+    renderNeural(v, asset, assetPath, info, partition, fh);
+    readMetadataAndBias(v, asset);
+
+    if (settings.baseline) runBaseline(v, info, fh);
     return r;
 }
 

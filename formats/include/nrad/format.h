@@ -353,15 +353,13 @@ inline float rdf32(const uint8_t* p) {
     std::memcpy(&f, &x, 4);
     return f;
 }
-}  // namespace detail
 
-// Decodes and validates an asset held in [data, data + size). Safe on untrusted input: every offset and
-// count is checked against the buffer before use, every CRC is verified, every weight must be finite.
-inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
-    using namespace detail;
+// decode()'s phases, in the order it runs them (so a file broken in several ways reports the first).
+
+// The header: magic, version, CRC, sizes; `tableEnd` receives the end of the section table.
+inline DecodeStatus decodeHeader(const uint8_t* data, size_t size, Header& h, uint64_t& tableEnd) {
     if (size < kHeaderSize) return (size >= 8 && std::memcmp(data, kMagic.data(), 8) != 0) ? DecodeStatus::BadMagic : DecodeStatus::Truncated;
     if (std::memcmp(data, kMagic.data(), 8) != 0) return DecodeStatus::BadMagic;
-    Header h;
     h.versionMajor = rd16(data + 8);
     h.versionMinor = rd16(data + 10);
     if (h.versionMajor != kVersionMajor) return DecodeStatus::UnsupportedVersion;
@@ -378,18 +376,35 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     if (h.fileSize < size) return DecodeStatus::TrailingBytes;
     if (h.sectionCount == 0 || h.sectionCount > kMaxSections || h.sectionTableOffset != kHeaderSize)
         return DecodeStatus::BadSectionTable;
-    uint64_t tableEnd = h.sectionTableOffset + uint64_t(h.sectionCount) * kSectionRecordSize;
+    tableEnd = h.sectionTableOffset + uint64_t(h.sectionCount) * kSectionRecordSize;
     if (tableEnd > size) return DecodeStatus::Truncated;
     if (crc32(data + h.sectionTableOffset, size_t(tableEnd - h.sectionTableOffset)) != rd32(data + 40))
         return DecodeStatus::BadSectionTable;
+    return DecodeStatus::Ok;
+}
 
-    const uint8_t* grid = nullptr;
-    const uint8_t* topo = nullptr;
-    const uint8_t* voxl = nullptr;
-    const uint8_t* wght = nullptr;
-    const uint8_t* meta = nullptr;
-    const uint8_t* tree = nullptr;
-    uint64_t gridSize = 0, topoSize = 0, voxlSize = 0, wghtSize = 0, metaSize = 0, treeSize = 0;
+// Where a known section's bytes are (null: absent).
+struct SectionSpan {
+    const uint8_t* at = nullptr;
+    uint64_t size = 0;
+};
+struct SectionSpans {
+    SectionSpan grid, topo, voxl, wght, meta, tree;
+    SectionSpan* of(uint32_t type) {  // null for a type this version does not know
+        switch (type) {
+            case kSectionGrid: return &grid;
+            case kSectionTopology: return &topo;
+            case kSectionVoxels: return &voxl;
+            case kSectionWeights: return &wght;
+            case kSectionMetadata: return &meta;
+            case kSectionTree: return &tree;
+            default: return nullptr;
+        }
+    }
+};
+
+// The section table: every record checked (layout, padding, CRC) and the known sections located.
+inline DecodeStatus decodeSectionTable(const uint8_t* data, size_t size, const Header& h, uint64_t tableEnd, SectionSpans& spans) {
     uint64_t expectedOffset = (tableEnd + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
     uint64_t previousEnd = tableEnd;
     for (uint32_t i = 0; i < h.sectionCount; ++i) {
@@ -410,103 +425,136 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         previousEnd = s.offset + s.size;
         if (crc32(data + s.offset, size_t(s.size)) != s.crc) return DecodeStatus::SectionCrcMismatch;
         expectedOffset = (s.offset + s.size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
-        const uint8_t*& slot = s.type == kSectionGrid ? grid : s.type == kSectionTopology ? topo : s.type == kSectionVoxels ? voxl
-                             : s.type == kSectionWeights ? wght : s.type == kSectionTree ? tree : meta;
-        uint64_t& slotSize = s.type == kSectionGrid ? gridSize : s.type == kSectionTopology ? topoSize : s.type == kSectionVoxels ? voxlSize
-                             : s.type == kSectionWeights ? wghtSize : s.type == kSectionTree ? treeSize : metaSize;
-        if (s.type != kSectionGrid && s.type != kSectionTopology && s.type != kSectionVoxels && s.type != kSectionWeights &&
-            s.type != kSectionMetadata && s.type != kSectionTree) {
-            // Unknown sections are allowed (newer minor versions) but must not repeat known ones.
-            continue;
-        }
-        if (slot) return DecodeStatus::BadSectionTable;  // duplicated
-        slot = data + s.offset;
-        slotSize = s.size;
+        SectionSpan* slot = spans.of(s.type);
+        // Unknown sections are allowed (newer minor versions) but must not repeat known ones.
+        if (!slot) continue;
+        if (slot->at) return DecodeStatus::BadSectionTable;  // duplicated
+        slot->at = data + s.offset;
+        slot->size = s.size;
     }
     {
         const uint8_t* last = data + h.sectionTableOffset + uint64_t(h.sectionCount - 1) * kSectionRecordSize;
         if (rd64(last + 8) + rd64(last + 16) != size) return DecodeStatus::TrailingBytes;
     }
-    if (!grid || !topo || !voxl || !wght) return DecodeStatus::MissingSection;
+    if (!spans.grid.at || !spans.topo.at || !spans.voxl.at || !spans.wght.at) return DecodeStatus::MissingSection;
+    return DecodeStatus::Ok;
+}
 
-    Grid g;
-    if (gridSize != 40) return DecodeStatus::BadGrid;
+// GRID: the box, the lattice and the blend band (present exactly with kFlagBlended).
+inline DecodeStatus decodeGrid(SectionSpan grid, uint32_t flags, Grid& g) {
+    if (grid.size != 40) return DecodeStatus::BadGrid;
     for (int k = 0; k < 3; ++k) {
-        g.lower[k] = rdf32(grid + 4 * k);
-        g.upper[k] = rdf32(grid + 12 + 4 * k);
-        g.dims[k] = rd32(grid + 24 + 4 * k);
+        g.lower[k] = rdf32(grid.at + 4 * k);
+        g.upper[k] = rdf32(grid.at + 12 + 4 * k);
+        g.dims[k] = rd32(grid.at + 24 + 4 * k);
         if (!std::isfinite(g.lower[k]) || !std::isfinite(g.upper[k]) || !(g.upper[k] > g.lower[k]) ||
             !std::isfinite(g.upper[k] - g.lower[k]) || g.dims[k] == 0 || g.dims[k] > kMaxGridDim)
             return DecodeStatus::BadGrid;
         // The voxel rule's factor dims / (upper - lower) must be finite too (a subnormal extent is not).
         if (!std::isfinite(float(g.dims[k]) / (g.upper[k] - g.lower[k]))) return DecodeStatus::BadGrid;
     }
-    g.blendBand = rdf32(grid + 36);
-    if ((h.flags & kFlagBlended) ? !(g.blendBand > 0.0f && g.blendBand <= kMaxBlendBand) : rd32(grid + 36) != 0)
+    g.blendBand = rdf32(grid.at + 36);
+    if ((flags & kFlagBlended) ? !(g.blendBand > 0.0f && g.blendBand <= kMaxBlendBand) : rd32(grid.at + 36) != 0)
         return DecodeStatus::BadGrid;
+    return DecodeStatus::Ok;
+}
 
-    Topology t;
-    if (topoSize < 24) return DecodeStatus::BadTopology;
-    t.inputs = rd32(topo);
-    t.outputs = rd32(topo + 4);
-    uint32_t layers = rd32(topo + 8);
-    uint32_t act = rd32(topo + 12), transform = rd32(topo + 16), enc = rd32(topo + 20);
+// TOPO: the network's shape, activation, output transform and weight encoding.
+inline DecodeStatus decodeTopology(SectionSpan topo, Topology& t) {
+    if (topo.size < 24) return DecodeStatus::BadTopology;
+    t.inputs = rd32(topo.at);
+    t.outputs = rd32(topo.at + 4);
+    uint32_t layers = rd32(topo.at + 8);
+    uint32_t act = rd32(topo.at + 12), transform = rd32(topo.at + 16), enc = rd32(topo.at + 20);
     if (t.inputs != kInputCount || t.outputs != kOutputCount || layers == 0 || layers > kMaxHiddenLayers ||
-        topoSize != 24 + 4 * uint64_t(layers) || act != uint32_t(Activation::ReLU) || transform > 1 || enc > 1)
+        topo.size != 24 + 4 * uint64_t(layers) || act != uint32_t(Activation::ReLU) || transform > 1 || enc > 1)
         return DecodeStatus::BadTopology;
     t.activation = Activation(act);
     t.outputTransform = OutputTransform(transform);
     t.weightEncoding = WeightEncoding(enc);
     t.hiddenWidths.resize(layers);
     for (uint32_t l = 0; l < layers; ++l) {
-        t.hiddenWidths[l] = rd32(topo + 24 + 4 * l);
+        t.hiddenWidths[l] = rd32(topo.at + 24 + 4 * l);
         if (t.hiddenWidths[l] == 0 || t.hiddenWidths[l] > kMaxHiddenWidth) return DecodeStatus::BadTopology;
     }
+    return DecodeStatus::Ok;
+}
 
-    // The partition: the uniform grid, or (kFlagTree) a kd-tree over its lattice whose leaves VOXL indexes.
-    std::vector<TreeNode> nodes;
-    uint32_t leafCount = 0;
-    if (((h.flags & kFlagTree) != 0) != (tree != nullptr)) return DecodeStatus::BadTree;
-    if (tree) {
-        if (treeSize < 4) return DecodeStatus::BadTree;
-        const uint32_t count = rd32(tree);
-        if (count == 0 || count > kMaxTreeNodes || treeSize != 4 + 8 * uint64_t(count)) return DecodeStatus::BadTree;
-        nodes.resize(count);
-        for (uint32_t i = 0; i < count; ++i) {
-            const uint32_t word = rd32(tree + 4 + 8 * uint64_t(i));
-            nodes[i] = {word & 3u, word >> 2, rd32(tree + 8 + 8 * uint64_t(i))};
-        }
-        if (!validateTree(g.dims, nodes, leafCount)) return DecodeStatus::BadTree;
+// TREE: the partition, the uniform grid (no section) or (kFlagTree) a kd-tree over its lattice whose leaves
+// VOXL indexes.
+inline DecodeStatus decodeTree(SectionSpan tree, uint32_t flags, const Grid& g, std::vector<TreeNode>& nodes, uint32_t& leafCount) {
+    if (((flags & kFlagTree) != 0) != (tree.at != nullptr)) return DecodeStatus::BadTree;
+    if (!tree.at) return DecodeStatus::Ok;
+    if (tree.size < 4) return DecodeStatus::BadTree;
+    const uint32_t count = rd32(tree.at);
+    if (count == 0 || count > kMaxTreeNodes || tree.size != 4 + 8 * uint64_t(count)) return DecodeStatus::BadTree;
+    nodes.resize(count);
+    for (uint32_t i = 0; i < count; ++i) {
+        const uint32_t word = rd32(tree.at + 4 + 8 * uint64_t(i));
+        nodes[i] = {word & 3u, word >> 2, rd32(tree.at + 8 + 8 * uint64_t(i))};
     }
-    const uint64_t cells = tree ? uint64_t(leafCount) : g.voxelCount();
+    if (!validateTree(g.dims, nodes, leafCount)) return DecodeStatus::BadTree;
+    return DecodeStatus::Ok;
+}
 
-    if (voxlSize < 4) return DecodeStatus::BadVoxels;
-    uint32_t occupied = rd32(voxl);
-    if (occupied == 0 || occupied > cells || voxlSize != 4 + 8 * uint64_t(occupied)) return DecodeStatus::BadVoxels;
-    std::vector<VoxelEntry> voxels(occupied);
+// VOXL: the occupied cells of `cells`, in increasing order, each with a finite positive scale.
+inline DecodeStatus decodeVoxels(SectionSpan voxl, uint64_t cells, std::vector<VoxelEntry>& voxels) {
+    if (voxl.size < 4) return DecodeStatus::BadVoxels;
+    uint32_t occupied = rd32(voxl.at);
+    if (occupied == 0 || occupied > cells || voxl.size != 4 + 8 * uint64_t(occupied)) return DecodeStatus::BadVoxels;
+    voxels.resize(occupied);
     for (uint32_t i = 0; i < occupied; ++i) {
-        voxels[i].index = rd32(voxl + 4 + 8 * uint64_t(i));
-        voxels[i].scale = rdf32(voxl + 8 + 8 * uint64_t(i));
+        voxels[i].index = rd32(voxl.at + 4 + 8 * uint64_t(i));
+        voxels[i].scale = rdf32(voxl.at + 8 + 8 * uint64_t(i));
         if (voxels[i].index >= cells || (i > 0 && voxels[i].index <= voxels[i - 1].index) ||
             !std::isfinite(voxels[i].scale) || !(voxels[i].scale > 0.0f))
             return DecodeStatus::BadVoxels;
     }
+    return DecodeStatus::Ok;
+}
 
+// WGHT: every network's weights, as floats, each finite.
+inline DecodeStatus decodeWeights(SectionSpan wght, const Topology& t, uint32_t occupied, std::vector<float>& weights) {
     uint64_t params = t.parameterCount();
-    if (wghtSize != uint64_t(occupied) * params * t.bytesPerWeight()) return DecodeStatus::BadWeights;
-    std::vector<float> weights(size_t(uint64_t(occupied) * params));
+    if (wght.size != uint64_t(occupied) * params * t.bytesPerWeight()) return DecodeStatus::BadWeights;
+    weights.resize(size_t(uint64_t(occupied) * params));
     for (size_t i = 0; i < weights.size(); ++i) {
-        float w = t.weightEncoding == WeightEncoding::Float16 ? halfToFloat(rd16(wght + 2 * i)) : rdf32(wght + 4 * i);
+        float w = t.weightEncoding == WeightEncoding::Float16 ? halfToFloat(rd16(wght.at + 2 * i)) : rdf32(wght.at + 4 * i);
         if (!std::isfinite(w)) return DecodeStatus::BadWeights;
         weights[i] = w;
     }
+    return DecodeStatus::Ok;
+}
+}  // namespace detail
+
+// Decodes and validates an asset held in [data, data + size). Safe on untrusted input: every offset and
+// count is checked against the buffer before use, every CRC is verified, every weight must be finite.
+inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
+    using namespace detail;
+    Header h;
+    uint64_t tableEnd = 0;
+    SectionSpans spans;
+    Grid g;
+    Topology t;
+    std::vector<TreeNode> nodes;
+    uint32_t leafCount = 0;
+    if (DecodeStatus s = decodeHeader(data, size, h, tableEnd); s != DecodeStatus::Ok) return s;
+    if (DecodeStatus s = decodeSectionTable(data, size, h, tableEnd, spans); s != DecodeStatus::Ok) return s;
+    if (DecodeStatus s = decodeGrid(spans.grid, h.flags, g); s != DecodeStatus::Ok) return s;
+    if (DecodeStatus s = decodeTopology(spans.topo, t); s != DecodeStatus::Ok) return s;
+    if (DecodeStatus s = decodeTree(spans.tree, h.flags, g, nodes, leafCount); s != DecodeStatus::Ok) return s;
+    const uint64_t cells = spans.tree.at ? uint64_t(leafCount) : g.voxelCount();
+    std::vector<VoxelEntry> voxels;
+    if (DecodeStatus s = decodeVoxels(spans.voxl, cells, voxels); s != DecodeStatus::Ok) return s;
+    std::vector<float> weights;
+    if (DecodeStatus s = decodeWeights(spans.wght, t, uint32_t(voxels.size()), weights); s != DecodeStatus::Ok) return s;
 
     out.header = h;
     out.grid = g;
     out.topology = std::move(t);
     out.voxels = std::move(voxels);
     out.weights = std::move(weights);
-    out.metadata = meta ? std::string(reinterpret_cast<const char*>(meta), size_t(metaSize)) : std::string();
+    out.metadata = spans.meta.at ? std::string(reinterpret_cast<const char*>(spans.meta.at), size_t(spans.meta.size)) : std::string();
     out.tree = std::move(nodes);
     out.leafCount = leafCount;
     return DecodeStatus::Ok;
