@@ -207,7 +207,7 @@ inline void store3(float* const dst[3], size_t first, const typename V::F v[3]) 
 // A block of W located points, some of them in a blending band: eval::supports() and keepOccupied() for
 // every lane at once, then, for every voxel of the small box the block's supports span, that voxel's network
 // over the whole vector, each lane accumulating weight x radiance in voxel order (the order, rounding and
-// arithmetic of the grouped pass in runtime.cpp, so a point gets the same bits whichever path it takes).
+// arithmetic of the grouped pass in evaluation.cpp, so a point gets the same bits whichever path it takes).
 // Returns false, writing nothing, when the box holds more than kMaxBoxVoxels voxels (an incoherent block) or
 // some lane is left without an occupied support (the general path flags it). A block whose points all lie in one
 // voxel (`oneVoxel`: a surface's run) is blended whatever its box, at most the voxel and its 26 neighbours: the
@@ -359,7 +359,7 @@ inline unsigned finiteMask(typename V::F v) {
     return V::equalMask(V::mul(v, V::zero()), V::zero());
 }
 
-// v / |v| lane by lane, NaN where |v|^2 is zero or not finite: runtime.cpp's normalise(), the same operations
+// v / |v| lane by lane, NaN where |v|^2 is zero or not finite: gbuffer.cpp's normalise(), the same operations
 // in the same order.
 template <class V>
 inline void normalise3(typename V::F v[3]) {
@@ -374,7 +374,7 @@ inline void normalise3(typename V::F v[3]) {
     for (int k = 0; k < 3; ++k) v[k] = V::select(ok, V::mul(v[k], inv), V::set1(nan));
 }
 
-// A block's position, normal and direction from the G-buffer, as runtime.cpp's shadeGBuffer prepares them.
+// A block's position, normal and direction from the G-buffer, as gbuffer.cpp's shadeGBuffer prepares them.
 template <class V>
 NRAD_ALWAYS_INLINE inline void loadGBuffer(const GBufferIo& g, size_t first, typename V::F p[3], typename V::F n[3], typename V::F d[3]) {
     const bool wide = first + size_t(V::W) <= g.safePoints;
@@ -409,7 +409,7 @@ inline typename V::F clampKeepNaN(typename V::F x) {
     return V::select(below, V::zero(), V::select(above, V::set1(1.0f), x));
 }
 
-// The final radiance of W points from the asset's (rgb, in place): runtime.cpp's shadeOne and nrad/eval.h's
+// The final radiance of W points from the asset's (rgb, in place): gbuffer.cpp's shadeOne and nrad/eval.h's
 // shade() and reflectance() operation for operation (no fused multiply-adds, the same order, exp2Poly; min/max
 // with the x86 NaN rule standing where fmin/fmax or a NaN-discarding comparison stand), so each lane gets the
 // scalar path's bits.
@@ -706,7 +706,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 network[j] = g.dense[leaf];
                 result[j] = true;
                 lastLeaf = leaf;
-                ++def.treeBlocks;
+                NRAD_COUNT_FOR_TESTS(def.treeBlocks);
                 continue;
             }
             // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
@@ -730,7 +730,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             const int32_t voxel0 = V::firstLane(voxel);
             if (inBand & all) {  // blended: in registers when the block spans a few voxels
                 if (evalBlended<V>(ctx, t, n, d, c, out[j], V::equalMask(voxel, V::seti(voxel0)) == all)) {
-                    ++def.blendedBlocks;
+                    NRAD_COUNT_FOR_TESTS(def.blendedBlocks);
                     result[j] = true;
                     continue;
                 }
@@ -770,7 +770,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 if (gb->surfaces) shadePixels<V>(*gb, first, &in[j][3], &in[j][6], out[j]);
                 storePixels<V>(*gb, first, out[j]);
                 std::memset(gb->done + first, 1, W);
-                ++def.gbufferBlocks;
+                NRAD_COUNT_FOR_TESTS(def.gbufferBlocks);
             } else {
                 store3<V, Stride>(io.out, first, out[j]);
             }
