@@ -614,9 +614,91 @@ inline void spill(const BatchIo& io, size_t first, const typename V::F p[3], con
     store3<V, Stride>(const_cast<float* const*>(io.d), first, d);
 }
 
+// A block of a kd-tree asset whose points are valid and inside the grid: located in the last vector's leaf or in
+// one leaf for the whole vector, its position inputs written to `in` and its leaf's network returned, for
+// evaluation in registers; or, spread over leaves (or in a band), each point recorded by itself (recordTreeLanes)
+// and -1 returned.
+template <class V, int Stride>
+NRAD_ALWAYS_INLINE inline int32_t locateTreeBlock(const BlockContext& ctx, const LocateGrid& g, const BatchIo& io, size_t first,
+                                                  const typename V::F t[3], const typename V::F p[3], const typename V::F n[3],
+                                                  const typename V::F d[3], int32_t& lastLeaf, Deferred& def, typename V::F in[kInputs]) {
+    using I = typename V::I;
+    constexpr unsigned all = V::W == 32 ? ~0u : (1u << V::W) - 1u;
+    int32_t leaf = -1;
+    if (lastLeaf >= 0 && (insideLeaf<V>(ctx.tree, lastLeaf, t) & all) == all) {  // runs on one surface
+        leaf = lastLeaf;
+    } else {
+        const I leaves = treeLeaves<V>(ctx.tree, g.dims, t);
+        const int32_t leaf0 = V::firstLane(leaves);
+        if (V::equalMask(leaves, V::seti(leaf0)) == all && g.dense[leaf0] >= 0 &&
+            (!(g.band > 0.0f) || (insideLeaf<V>(ctx.tree, leaf0, t) & all) == all)) {
+            leaf = leaf0;
+        } else {
+            if (io.gbuffer) spill<V, Stride>(io, first, p, n, d);  // the other paths read BatchIo
+            recordTreeLanes<V>(ctx, t, leaves, first, def, io.flags);
+            return -1;
+        }
+    }
+    treeLeafInputs<V>(ctx.tree, leaf, t, in);
+    lastLeaf = leaf;
+    NRAD_COUNT_FOR_TESTS(def.treeBlocks);
+    return g.dense[leaf];
+}
+
+// The network view of network k (ctx.networks is network 0's).
+inline NetworkView networkAt(const BlockContext& ctx, int32_t k) {
+    NetworkView net = ctx.networks;
+    net.params += size_t(k) * ctx.paramsPerNetwork;
+    net.scale = ctx.scales[k];
+    return net;
+}
+
+// The networks of a step's blocks (count from its first; -1: none) over their inputs, into their outputs: once for
+// both blocks where they share a network and `pairs` (the kernel has the registers), else block by block.
+template <class V>
+NRAD_ALWAYS_INLINE inline void evalStep(const BlockContext& ctx, bool pairs, int count, const int32_t network[2],
+                                        const typename V::F in[2][kInputs], typename V::F out[2][kOutputs]) {
+    if (pairs && count == 2 && network[0] >= 0 && network[0] == network[1]) {
+        const NetworkView net = networkAt(ctx, network[0]);
+        evalNetworkPair<V>(net, in, out);
+        for (int j = 0; j < 2; ++j) toRadiance<V>(net, out[j]);
+    } else {
+        for (int j = 0; j < count; ++j) {
+            if (network[j] < 0) continue;
+            const NetworkView net = networkAt(ctx, network[j]);
+            evalNetwork<V>(net, in[j], out[j]);
+            toRadiance<V>(net, out[j]);
+        }
+    }
+}
+
+// The blocks of a step that have results (count from block `pair`), written: into the G-buffer's pixels (shaded
+// in place first when it has surfaces) or BatchIo::out.
+template <class V, int Stride>
+NRAD_ALWAYS_INLINE inline void writeBlocks(const BatchIo& io, size_t pair, int count, const bool result[2],
+                                           typename V::F in[2][kInputs], typename V::F out[2][kOutputs], Deferred& def) {
+    constexpr int W = V::W;
+    const GBufferIo* const gb = io.gbuffer;
+    for (int j = 0; j < count; ++j) {
+        if (!result[j]) continue;
+        const size_t first = (pair + size_t(j)) * size_t(W);
+        if (gb) {
+            if (gb->surfaces) shadePixels<V>(*gb, first, &in[j][3], &in[j][6], out[j]);
+            storePixels<V>(*gb, first, out[j]);
+            std::memset(gb->done + first, 1, W);
+            NRAD_COUNT_FOR_TESTS(def.gbufferBlocks);
+        } else {
+            store3<V, Stride>(io.out, first, out[j]);
+        }
+        if (io.flags) std::memset(io.flags + first, 0, W);
+    }
+    (void)def;
+}
+
 // BlockDriver (kernels.h), for one layout. Blocks are taken two at a time: each is read, checked and located on
-// its own (deferred, recorded point by point or blended there), two that need the same network are evaluated
-// together (evalNetworkPair, where the kernel has the registers), and the blocks with results are written last.
+// its own (deferred, recorded point by point or blended there; kd-tree assets in locateTreeBlock), two that need
+// the same network are evaluated together (evalNetworkPair, where the kernel has the registers), and the blocks
+// with results are written last (writeBlocks).
 template <class V, int Stride>
 void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
     using F = typename V::F;
@@ -645,12 +727,6 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         last[k] = V::seti(int(g.dims[k]) - 1);
     }
     const F band = V::set1(g.band), farBand = V::set1(1.0f - g.band);
-    auto networkView = [&](int32_t network) {
-        NetworkView net = ctx.networks;
-        net.params += size_t(network) * ctx.paramsPerNetwork;
-        net.scale = ctx.scales[network];
-        return net;
-    };
     int32_t lastLeaf = -1;  // kd-tree assets: the leaf of the last vector evaluated in registers
     for (size_t pair = 0; pair < blocks; pair += kStep) {
         const int count = pair + 1 < blocks ? kStep : 1;
@@ -684,39 +760,19 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
                 in[j][3 + k] = n[k];
                 in[j][6 + k] = d[k];
             }
+            F t[3];
+            for (int k = 0; k < 3; ++k) t[k] = V::mul(V::sub(p[k], lower[k]), factor[k]);  // eval::gridCoordinate
             if (tree) {  // a kd-tree asset: the last vector's leaf, one leaf for the vector, or each point in its own
-                F t[3];
-                for (int k = 0; k < 3; ++k) t[k] = V::mul(V::sub(p[k], lower[k]), factor[k]);  // eval::gridCoordinate
-                int32_t leaf = -1;
-                if (lastLeaf >= 0 && (insideLeaf<V>(ctx.tree, lastLeaf, t) & all) == all) {  // runs on one surface
-                    leaf = lastLeaf;
-                } else {
-                    const I leaves = treeLeaves<V>(ctx.tree, g.dims, t);
-                    const int32_t leaf0 = V::firstLane(leaves);
-                    if (V::equalMask(leaves, V::seti(leaf0)) == all && g.dense[leaf0] >= 0 &&
-                        (!banded || (insideLeaf<V>(ctx.tree, leaf0, t) & all) == all)) {
-                        leaf = leaf0;
-                    } else {
-                        if (gb) spill<V, Stride>(io, first, p, n, d);  // the other paths read BatchIo
-                        recordTreeLanes<V>(ctx, t, leaves, first, def, io.flags);
-                        continue;
-                    }
-                }
-                treeLeafInputs<V>(ctx.tree, leaf, t, in[j]);
-                network[j] = g.dense[leaf];
-                result[j] = true;
-                lastLeaf = leaf;
-                NRAD_COUNT_FOR_TESTS(def.treeBlocks);
+                network[j] = locateTreeBlock<V, Stride>(ctx, g, io, first, t, p, n, d, lastLeaf, def, in[j]);
+                result[j] = network[j] >= 0;
                 continue;
             }
             // The voxel and the position inside it, exactly as eval::supports() computes them for a point in no
             // blending band (eval::bandSide); a block with a point in a band is blended by evalBlended (or, when
             // it spans too many voxels, takes the general path).
-            F t[3];
             I c[3];
             unsigned inBand = 0;
             for (int k = 0; k < 3; ++k) {
-                t[k] = V::mul(V::sub(p[k], lower[k]), factor[k]);
                 c[k] = V::mini(V::cvtTrunc(t[k]), last[k]);  // t >= 0 here
                 F cf = V::cvtFloat(c[k]), f = V::sub(t[k], cf);
                 if (banded) {  // c > 0 && f < band, or c + 1 < dims && f > 1 - band (f is never NaN here)
@@ -750,32 +806,8 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
             for (int k = 0; k < 3; ++k) V::store(lanes[k], in[j][k]);
             recordLanes<V>(def, io.flags, first, ~inBand & all, networks, lanes);
         }
-        if (pairs && count == 2 && network[0] >= 0 && network[0] == network[1]) {
-            const NetworkView net = networkView(network[0]);
-            evalNetworkPair<V>(net, in, out);
-            for (int j = 0; j < 2; ++j) toRadiance<V>(net, out[j]);
-        } else {
-            for (int j = 0; j < count; ++j) {
-                if (network[j] < 0) continue;
-                const NetworkView net = networkView(network[j]);
-                evalNetwork<V>(net, in[j], out[j]);
-                toRadiance<V>(net, out[j]);
-            }
-        }
-        // The blocks' results: into the G-buffer's pixels (shaded first when it has surfaces) or BatchIo::out.
-        for (int j = 0; j < count; ++j) {
-            if (!result[j]) continue;
-            const size_t first = (pair + size_t(j)) * size_t(W);
-            if (gb) {
-                if (gb->surfaces) shadePixels<V>(*gb, first, &in[j][3], &in[j][6], out[j]);
-                storePixels<V>(*gb, first, out[j]);
-                std::memset(gb->done + first, 1, W);
-                NRAD_COUNT_FOR_TESTS(def.gbufferBlocks);
-            } else {
-                store3<V, Stride>(io.out, first, out[j]);
-            }
-            if (io.flags) std::memset(io.flags + first, 0, W);
-        }
+        evalStep<V>(ctx, pairs, count, network, in, out);
+        writeBlocks<V, Stride>(io, pair, count, result, in, out, def);
     }
 }
 
