@@ -6,6 +6,9 @@
 // output transform, and the recombination with the surface's material. The CPU runtime is the reference;
 // tests/gpu holds this file to it on lavapipe within the tolerance docs/runtime.md states.
 //
+// It includes nrad_gpu_layout.h (the buffer's word offsets), which is installed beside it; where a toolchain has
+// no includes, paste nrad_gpu_layout.h, then this file.
+//
 // Before including, optionally:
 //   #define NRAD_ASSET_BINDING n    the storage buffer's binding (default 0)
 //   #define NRAD_ASSET_SET s        its descriptor set, Vulkan only (default 0)
@@ -46,13 +49,11 @@ const uint NRAD_CONTENT_TREE = 8u;
 const int NRAD_GPU_MAX_HIDDEN_WIDTH = 32;
 const int NRAD_MAX_SUPPORTS = 8;
 
-// The header's word offsets (runtime/src/runtime.cpp, namespace gpu).
-const uint NRAD_WORD_CONTENT_FLAGS = 2u, NRAD_WORD_OUTPUT_TRANSFORM = 3u, NRAD_WORD_LOWER = 4u, NRAD_WORD_UPPER = 7u,
-           NRAD_WORD_DIMS = 10u, NRAD_WORD_FACTOR = 13u, NRAD_WORD_BAND = 16u, NRAD_WORD_HIDDEN_LAYERS = 17u,
-           NRAD_WORD_HIDDEN_WIDTHS = 18u, NRAD_WORD_PARAMS = 26u, NRAD_WORD_TREE_NODES = 29u,
-           NRAD_WORD_CELL_TABLE = 30u, NRAD_WORD_SCALES = 31u, NRAD_WORD_NODES = 32u, NRAD_WORD_WIDTHS = 33u,
-           NRAD_WORD_BOXES = 34u, NRAD_WORD_WEIGHTS = 35u;
-const uint NRAD_TREE_LEAF = 3u;
+// The header's word offsets, shared with the runtime's packer: nrad_gpu_layout.h, installed beside this file
+// (pasted before it where a toolchain has no includes, which its guard then skips).
+#ifndef NRAD_GPU_LAYOUT_H
+#include "nrad_gpu_layout.h"
+#endif
 
 // The material terms a G-buffer holds (nrad.h's NradSurface).
 struct NradSurface {
@@ -64,7 +65,7 @@ struct NradSurface {
 };
 
 float nradFloat(uint word) { return uintBitsToFloat(nradWords[word]); }
-uint nradContentFlags() { return nradWords[NRAD_WORD_CONTENT_FLAGS]; }
+uint nradContentFlags() { return nradWords[NRAD_GPU_WORD_CONTENT_FLAGS]; }
 bool nradFinite(float v) { return (floatBitsToUint(v) & 0x7F800000u) != 0x7F800000u; }
 bool nradFinite3(vec3 v) { return nradFinite(v.x) && nradFinite(v.y) && nradFinite(v.z); }
 
@@ -86,16 +87,16 @@ float nradClampReach(float q, float reach) { return q < -reach ? -reach : (q > r
 // The grid's supports: count (0 outside), cells, weights and position inputs.
 int nradGridSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights[NRAD_MAX_SUPPORTS],
                      out vec3 locals[NRAD_MAX_SUPPORTS]) {
-    float band = nradFloat(NRAD_WORD_BAND);
+    float band = nradFloat(NRAD_GPU_WORD_BAND);
     int lowCoord[3], count[3];
     float upWeight[3], t[3];
     uint dims[3];
     for (int k = 0; k < 3; ++k) {
         uint kk = uint(k);
-        float lower = nradFloat(NRAD_WORD_LOWER + kk), upper = nradFloat(NRAD_WORD_UPPER + kk);
-        dims[k] = nradWords[NRAD_WORD_DIMS + kk];
+        float lower = nradFloat(NRAD_GPU_WORD_LOWER + kk), upper = nradFloat(NRAD_GPU_WORD_UPPER + kk);
+        dims[k] = nradWords[NRAD_GPU_WORD_DIMS + kk];
         if (!(p[k] >= lower && p[k] <= upper)) return 0;
-        precise float tk = (p[k] - lower) * nradFloat(NRAD_WORD_FACTOR + kk);
+        precise float tk = (p[k] - lower) * nradFloat(NRAD_GPU_WORD_FACTOR + kk);
         t[k] = tk;
         int c = nradVoxelCoordinate(tk, dims[k]);
         precise float f = tk - float(c);
@@ -142,16 +143,16 @@ int nradGridSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
 // The kd-tree's supports, in leaf order (eval::treeSupports, descending from the root).
 int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights[NRAD_MAX_SUPPORTS],
                      out vec3 locals[NRAD_MAX_SUPPORTS]) {
-    float band = nradFloat(NRAD_WORD_BAND);
+    float band = nradFloat(NRAD_GPU_WORD_BAND);
     vec3 t;
     for (int k = 0; k < 3; ++k) {
         uint kk = uint(k);
-        float lower = nradFloat(NRAD_WORD_LOWER + kk), upper = nradFloat(NRAD_WORD_UPPER + kk);
+        float lower = nradFloat(NRAD_GPU_WORD_LOWER + kk), upper = nradFloat(NRAD_GPU_WORD_UPPER + kk);
         if (!(p[k] >= lower && p[k] <= upper)) return 0;
-        precise float tk = (p[k] - lower) * nradFloat(NRAD_WORD_FACTOR + kk);
+        precise float tk = (p[k] - lower) * nradFloat(NRAD_GPU_WORD_FACTOR + kk);
         t[k] = tk;
     }
-    uint nodes = nradWords[NRAD_WORD_NODES], widths = nradWords[NRAD_WORD_WIDTHS];
+    uint nodes = nradWords[NRAD_GPU_WORD_NODES], widths = nradWords[NRAD_GPU_WORD_WIDTHS];
     uint stackNode[NRAD_MAX_SUPPORTS];
     vec3 stackWeight[NRAD_MAX_SUPPORTS];
     int top = 0, n = 0;
@@ -162,7 +163,7 @@ int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
         for (;;) {
             uint word = nradWords[nodes + 2u * node];
             uint axis = word & 3u;
-            if (axis == NRAD_TREE_LEAF) break;
+            if (axis == NRAD_GPU_TREE_LEAF) break;
             int k = int(axis);
             uint child = nradWords[nodes + 2u * node + 1u];
             precise float x = t[k] - float(word >> 2u);
@@ -191,7 +192,7 @@ int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
         node = stackNode[top];
         w = stackWeight[top];
     }
-    uint boxes = nradWords[NRAD_WORD_BOXES];
+    uint boxes = nradWords[NRAD_GPU_WORD_BOXES];
     for (int i = 0; i < n; ++i) {
         uint b = boxes + 6u * uint(cells[i]);
         vec3 local;
@@ -209,7 +210,7 @@ int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
 // ----- the network and its output (eval.h: forward, expMinusOne, decodeOutput) -----------------------------
 
 float nradWeight(uint index) {
-    vec2 pair = unpackHalf2x16(nradWords[nradWords[NRAD_WORD_WEIGHTS] + (index >> 1u)]);
+    vec2 pair = unpackHalf2x16(nradWords[nradWords[NRAD_GPU_WORD_WEIGHTS] + (index >> 1u)]);
     return (index & 1u) != 0u ? pair.y : pair.x;
 }
 
@@ -262,11 +263,11 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
         a[3 + i] = normal[i];
         a[6 + i] = direction[i];
     }
-    uint layers = nradWords[NRAD_WORD_HIDDEN_LAYERS];
+    uint layers = nradWords[NRAD_GPU_WORD_HIDDEN_LAYERS];
     uint inputs = 9u;
     for (uint l = 0u; l <= layers; ++l) {
         bool last = l == layers;
-        uint outputs = last ? 3u : nradWords[NRAD_WORD_HIDDEN_WIDTHS + l];
+        uint outputs = last ? 3u : nradWords[NRAD_GPU_WORD_HIDDEN_WIDTHS + l];
         uint bias = w + outputs * inputs;
         for (uint o = 0u; o < outputs; ++o) {
             float s = nradWeight(bias + o);
@@ -282,11 +283,11 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
 
 // Radiance of network `net` (decoded: transform, scale, clamped to [0, 1e30]) for the nine inputs.
 vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
-    uint w = uint(net) * nradWords[NRAD_WORD_PARAMS];  // half index of the network's first parameter
-    bool default993 = nradWords[NRAD_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_WORD_HIDDEN_WIDTHS] == 9u;
+    uint w = uint(net) * nradWords[NRAD_GPU_WORD_PARAMS];  // half index of the network's first parameter
+    bool default993 = nradWords[NRAD_GPU_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_GPU_WORD_HIDDEN_WIDTHS] == 9u;
     vec3 y = default993 ? nradForward993(w, local, normal, direction) : nradForward(w, local, normal, direction);
-    bool exponential = nradWords[NRAD_WORD_OUTPUT_TRANSFORM] == 1u;
-    float scale = nradFloat(nradWords[NRAD_WORD_SCALES] + uint(net));
+    bool exponential = nradWords[NRAD_GPU_WORD_OUTPUT_TRANSFORM] == 1u;
+    float scale = nradFloat(nradWords[NRAD_GPU_WORD_SCALES] + uint(net));
     vec3 rgb;
     for (int c = 0; c < 3; ++c) {
         float v = (exponential ? nradExpMinusOne(y[c]) : y[c]) * scale;
@@ -304,11 +305,11 @@ uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance)
     int cells[NRAD_MAX_SUPPORTS];
     float weights[NRAD_MAX_SUPPORTS];
     vec3 locals[NRAD_MAX_SUPPORTS];
-    int count = nradWords[NRAD_WORD_TREE_NODES] == 0u ? nradGridSupports(position, cells, weights, locals)
+    int count = nradWords[NRAD_GPU_WORD_TREE_NODES] == 0u ? nradGridSupports(position, cells, weights, locals)
                                                       : nradTreeSupports(position, cells, weights, locals);
     if (count == 0) return NRAD_POINT_OUTSIDE_GRID;
     // keepOccupied: drop supports without a network (or weight 0), renormalise the rest in order.
-    uint table = nradWords[NRAD_WORD_CELL_TABLE];
+    uint table = nradWords[NRAD_GPU_WORD_CELL_TABLE];
     int nets[NRAD_MAX_SUPPORTS];
     int kept = 0;
     float sum = 0.0;

@@ -69,7 +69,7 @@ void floatToHalfNeon(const float* in, uint16_t* out, size_t n);
 
 // ----- whole batches, a vector of points at a time (the SIMD kernels only) -----------------------------
 
-// The grid as locate() in runtime.cpp uses it; `dense` maps every voxel to its network or -1.
+// The grid as locate() in evaluation.cpp uses it; `dense` maps every voxel to its network or -1.
 struct LocateGrid {
     float lower[3], upper[3];
     float factor[3];  // dims / (upper - lower)
@@ -108,7 +108,7 @@ struct GBufferIo {
     int channels;
     uint8_t* done;  // per point, zeroed by the caller
     // The material terms (NradSurface's nine floats, `surfaceStride` bytes apart; null: none) the driver
-    // shades its pixels with, by the asset's content flags (nrad/eval.h shade(), as runtime.cpp's
+    // shades its pixels with, by the asset's content flags (nrad/eval.h shade(), as gbuffer.cpp's
     // shadeOne applies it, bit for bit).
     const uint8_t* surfaces;
     size_t surfaceStride;
@@ -177,21 +177,18 @@ struct Deferred {
     int32_t* network;
     float* local;  // 3 per point
     size_t count;
-    size_t blendedBlocks;  // blocks blended in registers (evalBlended)
-    size_t gbufferBlocks;  // G-buffer blocks whose pixels the driver wrote
-    size_t treeBlocks;  // blocks located in a kd-tree's leaf and evaluated in registers
+#ifdef NRAD_RUNTIME_TESTING  // the test build's counts of the paths blocks took (testing.h)
+    size_t blendedBlocks = 0;  // blocks blended in registers (evalBlended)
+    size_t gbufferBlocks = 0;  // G-buffer blocks whose pixels the driver wrote
+    size_t treeBlocks = 0;  // blocks located in a kd-tree's leaf and evaluated in registers
+#endif
 };
-
-// Blocks blended in registers since the process started, over all threads: lets tests see that the
-// vector blending path is taken (its results are bit-identical to the general path's by design).
-uint64_t blendedBlocksSoFar();
-// G-buffer blocks read, evaluated and written in registers since the process started (the same purpose).
-uint64_t gbufferBlocksSoFar();
-// Blocks of kd-tree assets located and evaluated in registers since the process started (the same purpose).
-uint64_t treeBlocksSoFar();
-// The most cells of a kd-tree's rectilinear table (LocateTree) for assets loaded from now on; tests set 0 to
-// run the start table's descent on small trees (default LocateTree::kMaxRectCells).
-void setMaxRectCells(size_t cells);
+// Counts one block in a Deferred's counter in the test build (testing.h); nothing in the shipped library.
+#ifdef NRAD_RUNTIME_TESTING
+#define NRAD_COUNT_FOR_TESTS(counter) (++(counter))
+#else
+#define NRAD_COUNT_FOR_TESTS(counter) ((void)0)
+#endif
 
 // The shading contract's flags (format::kFlagScatteredRadiance, format::kFlagDemodulated) as the kernels see them.
 constexpr uint32_t kContentScattered = 1u, kContentDemodulated = 2u;

@@ -22,7 +22,16 @@ for kind in static shared; do
   cmake --build "$dir/build" >> "$log" 2>&1 || { cat "$log"; exit 1; }
   ls "$dir/install/lib"*/cmake/nrad/nradConfigVersion.cmake > /dev/null
   ls "$dir/install/include/nrad/version.h" > /dev/null
-  ls "$dir/install/share/nrad/shaders/nrad.glsl" "$dir/install/share/nrad/shaders/nrad_evaluate.comp" > /dev/null
+  shaders="$dir/install/share/nrad/shaders"
+  ls "$shaders/nrad.glsl" "$shaders/nrad_gpu_layout.h" "$shaders/nrad_evaluate.comp" > /dev/null
+  # The installed shaders compile from their own folder: nrad.glsl finds nrad_gpu_layout.h beside it.
+  if command -v glslangValidator > /dev/null; then
+    glslangValidator -V --target-env vulkan1.0 -o "$dir/nrad_evaluate.spv" "$shaders/nrad_evaluate.comp" >> "$log" 2>&1 \
+      || { cat "$log"; echo "the installed shaders do not compile on their own" >&2; exit 1; }
+  fi
+  # The runtime's test hooks (runtime/src/testing.h) belong to its test build only, not to the installed library.
+  lib=$(ls "$dir/install/lib"*/libnrad.* | head -1)
+  if nm -C "$lib" 2>/dev/null | grep -q "rt::testing::"; then echo "$lib carries the runtime's test hooks" >&2; exit 1; fi
   if [ "$kind" = shared ]; then
     lib=$(ls "$dir/install/lib"*/libnrad.so.*.*.* | head -1)
     # Hidden visibility: the C API is all a shared libnrad exports.

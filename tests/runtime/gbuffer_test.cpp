@@ -13,7 +13,7 @@
 
 #include <gtest/gtest.h>
 
-#include "runtime/src/kernels.h"  // rt::gbufferBlocksSoFar(): which path the vector kernels took
+#include "runtime/src/testing.h"  // rt::testing::gbufferBlocksSoFar(): which path the vector kernels took
 #include "support/random_asset.h"
 #include "support/test_trees.h"
 
@@ -220,7 +220,7 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
     for (const NradKernel kernel : kernels()) {
         SCOPED_TRACE("kernel " + std::to_string(int(kernel)));
         ASSERT_EQ(nradSelectKernel(kernel), NRAD_OK);
-        const uint64_t before = rt::gbufferBlocksSoFar(), treeBefore = rt::treeBlocksSoFar();
+        const uint64_t before = rt::testing::gbufferBlocksSoFar(), treeBefore = rt::testing::treeBlocksSoFar();
         // A blended grid asset, and a kd-tree asset over an 8^3 lattice of the same box (cells of the lattice are
         // the runs' cells below; leaves hold several).
         format::Asset grid =
@@ -389,8 +389,8 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
             }
         }
         if (kernel != NRAD_KERNEL_SCALAR) {
-            EXPECT_GT(rt::gbufferBlocksSoFar(), before) << "the vector path was not taken";
-            EXPECT_GT(rt::treeBlocksSoFar(), treeBefore) << "no tree vector was located in registers";
+            EXPECT_GT(rt::testing::gbufferBlocksSoFar(), before) << "the vector path was not taken";
+            EXPECT_GT(rt::testing::treeBlocksSoFar(), treeBefore) << "no tree vector was located in registers";
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);

@@ -14,7 +14,7 @@
 
 #include <gtest/gtest.h>
 
-#include "runtime/src/kernels.h"  // rt::blendedBlocksSoFar(): which path the vector kernels took
+#include "runtime/src/testing.h"  // rt::testing::blendedBlocksSoFar(): which path the vector kernels took
 #include "support/test_paths.h"
 #include "support/random_asset.h"
 #include "support/test_trees.h"
@@ -144,14 +144,14 @@ TEST(Runtime, EveryKernelMatchesAPlainForwardPass) {
 // The kd-tree partition: the uniform tree shades exactly as the grid (bit for bit, every kernel, blended or
 // not), and a random tree of leaves of many sizes matches the plain forward pass through eval.h's supports.
 // Both ways the vector path locates in a kd-tree (the rectilinear table of small trees, and the start table's
-// descent that larger ones take), each assets loaded after setMaxRectCells.
+// descent that larger ones take), each asset loaded after testing::setMaxRectCells.
 const size_t kRectLimits[2] = {rt::LocateTree::kMaxRectCells, 0};
 
 TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
     for (size_t rect : kRectLimits)
     for (float band : {0.0f, 0.125f}) {
         SCOPED_TRACE("rectilinear table up to " + std::to_string(rect) + " cells");
-        rt::setMaxRectCells(rect);
+        rt::testing::setMaxRectCells(rect);
         format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 21,
                                          glm::uvec3(4, 3, 5), band);
         format::Asset tree = grid;
@@ -195,7 +195,7 @@ TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
-    rt::setMaxRectCells(rt::LocateTree::kMaxRectCells);
+    rt::testing::setMaxRectCells(rt::LocateTree::kMaxRectCells);
 }
 
 // Runs of points in one voxel, as a renderer's coherent batches have: most vectors of 8 or 16 points lie
@@ -243,11 +243,11 @@ Points coherentPoints(const format::Asset& a, uint32_t seed) {
 // (planes hit exactly now and then, bad points among them) through every vector kernel, in one batch against
 // one point per call (the general path); and the uniform tree against the grid on coherent runs.
 TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
-    const uint64_t before = rt::treeBlocksSoFar();
+    const uint64_t before = rt::testing::treeBlocksSoFar();
     for (size_t rect : kRectLimits)
     for (float band : {0.0f, 0.125f}) {
         SCOPED_TRACE("band " + std::to_string(band) + ", rectilinear table up to " + std::to_string(rect) + " cells");
-        rt::setMaxRectCells(rect);
+        rt::testing::setMaxRectCells(rect);
         format::Asset grid = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 23,
                                          glm::uvec3(4, 3, 5), band);
         format::Asset uniform = grid;
@@ -308,9 +308,9 @@ TEST(Runtime, CoherentTreeVectorsAreLocatedInRegistersBitForBit) {
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
-    rt::setMaxRectCells(rt::LocateTree::kMaxRectCells);
+    rt::testing::setMaxRectCells(rt::LocateTree::kMaxRectCells);
     if (kernels().size() > 1) {
-        EXPECT_GT(rt::treeBlocksSoFar(), before) << "no vector was located in registers";
+        EXPECT_GT(rt::testing::treeBlocksSoFar(), before) << "no vector was located in registers";
     }
 }
 
@@ -456,14 +456,14 @@ TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
     ASSERT_EQ(nradSelectKernel(kernel), NRAD_OK);
     SCOPED_TRACE("kernel " + std::to_string(int(kernel)));
     std::vector<float> rgb(3 * n);
-    const uint64_t blendedBefore = rt::blendedBlocksSoFar();
+    const uint64_t blendedBefore = rt::testing::blendedBlocksSoFar();
     ASSERT_EQ(asset.evaluateBatch(n, pts.p.data(), pts.n.data(), pts.d.data(), rgb.data()), NRAD_OK);
     // The vector kernels blend coherent runs in registers (what this test holds to the general path's bits).
     if (band > 0.0f && kernel != NRAD_KERNEL_SCALAR) {
-        EXPECT_GT(rt::blendedBlocksSoFar(), blendedBefore);
+        EXPECT_GT(rt::testing::blendedBlocksSoFar(), blendedBefore);
     }
     if (kernel == NRAD_KERNEL_SCALAR) {
-        EXPECT_EQ(rt::blendedBlocksSoFar(), blendedBefore);
+        EXPECT_EQ(rt::testing::blendedBlocksSoFar(), blendedBefore);
     }
     std::vector<float> soa[12];
     for (int k = 0; k < 9; ++k)
@@ -550,7 +550,7 @@ TEST(Runtime, PairsOfVectorsInOneCellMatchSinglePoints) {
             }
         }
         const size_t n = pts.p.size() / 3 - 5;  // a partial last vector
-        const uint64_t blendedBefore = rt::blendedBlocksSoFar();
+        const uint64_t blendedBefore = rt::testing::blendedBlocksSoFar();
         for (NradKernel k : kernels()) {
             ASSERT_EQ(nradSelectKernel(k), NRAD_OK);
             std::vector<float> batch(3 * n), single(3 * n);
@@ -564,7 +564,7 @@ TEST(Runtime, PairsOfVectorsInOneCellMatchSinglePoints) {
             }
         }
         if (source == &blended && kernels().size() > 1) {
-            EXPECT_GT(rt::blendedBlocksSoFar(), blendedBefore) << "no vector was blended in registers";
+            EXPECT_GT(rt::testing::blendedBlocksSoFar(), blendedBefore) << "no vector was blended in registers";
         }
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
