@@ -364,9 +364,8 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     SplitMix64 order((uint64_t(settings.seed) << 32) ^ (uint64_t(result.voxel) << 8) ^ (uint64_t(generation) << 40) ^ 0x9e3779b97f4a7c15ull);
     std::vector<size_t> perm = d.train;
     // A round of more steps than kRoundSteps takes smaller ones and averages over more of them, in proportion:
-    // what a network moves per round (and the noise it keeps) does not grow with its samples. (Measured on the
-    // glossy box: 400,000 points per round at the full rate drifted, relMSE 0.0117 after 16 rounds and 0.063
-    // after 32; at a fifth of the rate 0.0060.)
+    // what a network moves per round (and the noise it keeps) does not grow with its samples (at the full rate,
+    // large rounds drifted: docs/design.md).
     const size_t batch = size_t(std::clamp(settings.batchSize, 1, MlpBatchWorkspace::kMaxBatch));
     const double steps = double(epochs) * double((perm.size() + batch - 1) / batch);
     const float scale = steps > kRoundSteps ? float(kRoundSteps / steps) : 1.0f;

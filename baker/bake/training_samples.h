@@ -18,9 +18,9 @@
 namespace nrad {
 
 // Russian roulette for training targets (PathTracer::setRouletteThreshold): paths are followed until their
-// throughput falls below 0.1 before roulette may end them. At albedo 0.99 (the furnace) a path's many
-// bounces are then summed instead of sampled by a geometric length: the worst asset error fell from 13.2% to
-// 5.4% for 40% more sampling time on the Cornell box (docs/stability.md). Renders keep 1.
+// throughput falls below 0.1 before roulette may end them. At high albedo a path's many bounces are then
+// summed instead of sampled by a geometric length, a lower worst asset error for more sampling time
+// (docs/design.md). Renders keep 1.
 constexpr float kTrainingRouletteThreshold = 0.1f;
 
 struct TrainingSample {
@@ -57,7 +57,7 @@ struct SampleSettings {
     // Noisy targets get more paths (Monte Carlo targets only): a point whose mean's relative standard error
     // (luminance, over its `paths` estimates) exceeds noisyRelativeError gets (extraPathsFactor - 1) x paths
     // more, decided per point from its own estimates (any threads, the same samples). 1: off. The default, 4,
-    // takes the glossy box from 0.0085 to 0.0037 and the interiors' block errors down by a third (results.md).
+    // lowers the glossy box's and the interiors' errors (docs/usage.md, "--noisy-paths").
     uint32_t extraPathsFactor = 4;
     float noisyRelativeError = 0.15f;
 };

@@ -24,8 +24,7 @@ namespace nrad {
 namespace {
 
 // Bytes a render holds per pixel at its peak (the float image, its 8-bit copy and the encoded PNG; the neural
-// path's G-buffer): a path-traced PNG measured 21 (peak RSS at 2048 x 2048 less 256 x 256, over the pixels);
-// 48 leaves room for the neural path (docs/usage.md).
+// path's G-buffer), with room to spare (measured: docs/design.md; docs/usage.md).
 constexpr uint64_t kRenderBytesPerPixel = 48;
 
 struct RenderOptions {

@@ -177,8 +177,7 @@ void LightSelector::train(const std::vector<NeeRecord>& records, float lrScale, 
         // q = p: q_j ~ sqrt(second moment of light j's estimate), the selection of least variance when the
         // pick is stratified (each light then gets its share of a pixel's samples exactly and only the
         // estimates within a light vary). Weights w (the KL divergence, q_j ~ mean contribution) favour lights
-        // by brightness only: measured on split-rooms, 2.57-2.75x against 2.56-2.79x at 128 x 128 and
-        // 2.43-2.47x against 2.47-2.55x at 256 x 256 (docs/results.md).
+        // by brightness only (measured against these: docs/design.md).
         double wsum = 0.0;
         for (size_t k = begin; k < end; ++k) wsum += double(useful[k]->weight) * double(useful[k]->weight);
         // The gradient in fixed chunks of the mini-batch, in parallel, summed in chunk order: the same bits

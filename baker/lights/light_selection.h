@@ -47,8 +47,8 @@ struct NeeSettings {
     // candidate; 0 = no rounding). Nearby points then mostly get the very same distribution, so the CDF a
     // pixel's stratified pick samples invert stays the same from sample to sample and each light gets its
     // share of them exactly; the network's output otherwise varies a little over the pixel and moves the
-    // interval boundaries. Measured on split-rooms at 32 spp (docs/results.md): 32 beats none, 64 beats 32
-    // and 128; at 1-16 spp no rounding is better (nrad render --nee-quantum 0).
+    // interval boundaries. 64 measured best at 32 spp; at a few spp no rounding is better (nrad render
+    // --nee-quantum 0): docs/design.md.
     int quantum = 64;
     float learningRate = 2e-2f;  // Adam; a warm-up decays it linearly to zero (online_render.h)
     uint32_t seed = 0;  // initial weights

@@ -37,9 +37,8 @@ void runRound(uint64_t begin, uint64_t end, std::vector<NeeRecord>* records, Ray
 }
 
 // Learning-rate schedule of a warm-up (training that ends with the network frozen), `done` of `total` (paths
-// or steps) behind: linear decay from the full rate to zero, so the frozen weights are not one noisy step's.
-// Measured on split-rooms (docs/results.md): RMSE at 32 spp 2.45-2.66x below uniform's against 1.97-2.57x
-// at a constant rate.
+// or steps) behind: linear decay from the full rate to zero, so the frozen weights are not one noisy step's
+// (better than a constant rate: docs/design.md).
 float warmupLearningRateScale(uint64_t done, uint64_t total) {
     return total > 0 ? linearDecay(1.0f, float(double(done) / double(total))) : 1.0f;
 }

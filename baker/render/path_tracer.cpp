@@ -634,7 +634,7 @@ struct PathTracer::TileRender {
             const size_t next = first + batch;
             if (next < count) traceCameraRays(b, b.cameraBatches[(k + 1) & 1], next, std::min(batch, count - next), counters);
             // The texels again, now: the requests made a batch ahead do not all survive the previous batch
-            // (LightsPunctualLamp: 1-4% faster with both than with the early one alone).
+            // (docs/design.md).
             prefetchHits(c, m);
             tracer.traceBatch(b.paths.data(), startPaths(b, c, m), settings.maxDepth, counters, b.scratch);
             addSamples(b, c, m, counters);

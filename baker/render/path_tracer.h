@@ -53,11 +53,11 @@ struct RenderSettings {
     // rays as Embree streams, which give the single-ray results bit for bit). 1 traces one path at a time (the
     // plain reference the batched tracer is tested against).
     int batchSize = kBatchSize;
-    // Batches trace their camera rays as a coherent stream (Embree's packet kernels, as much as 20% faster on
-    // a large level). The packet kernels differ from the single-ray ones in the last bits of rare hits (on
-    // zdm2, 3 of 36,613 recorded rays hit a neighbouring triangle), which depend on the packet's other rays:
-    // the image is deterministic (the same for any number of threads) but differs from batches of another size
-    // in a few pixels. false: the same image, bit for bit, for every batch size.
+    // Batches trace their camera rays as a coherent stream (Embree's packet kernels, faster on large levels:
+    // docs/design.md). The packet kernels differ from the single-ray ones in the last bits of rare hits, which
+    // depend on the packet's other rays: the image is deterministic (the same for any number of threads) but
+    // differs from batches of another size in a few pixels. false: the same image, bit for bit, for every batch
+    // size.
     bool coherentCameraRays = true;
 };
 

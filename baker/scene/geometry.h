@@ -25,8 +25,8 @@ float rayOffset(const glm::vec3& p);
 // Margin around triangle t's plane within which a ray leaving (or aiming at) a point of it does not look
 // for hits: rayOffset of the largest coordinate of its three vertices. Both the rounding of a point
 // interpolated on the triangle and Embree's rounding of a ray's distance to its plane scale with its
-// vertices' coordinates, not the point's: on a large tilted triangle through the origin, a margin from
-// the point's own coordinates let 46% of the shadow rays near the origin find their own triangle.
+// vertices' coordinates, not the point's: a margin from the point's own coordinates let shadow rays near the
+// origin find their own triangle (docs/design.md).
 float triangleMargin(const TriangleMesh& mesh, uint32_t t);
 
 }  // namespace nrad

@@ -75,7 +75,7 @@ std::vector<RegionError> relMseByRegion(const Image& image, const Image& referen
 //
 // Block figure: both images averaged over square blocks of `blockSize` pixels (validate: width / 16, 14
 // pixels at 224 wide: well below a voxel's size on screen; the reference's own noise in a block is not
-// negligible in dim light, 1.5-3% in the doorway scene's dark room at 512 spp, and validate reports it), over
+// negligible in dim light (docs/design.md), and validate reports it), over
 // the blocks whose every pixel is masked and whose reference luminance is at least 1e-3 of the masked mean.
 // Per block, the relative error of the mean luminance, and the tint: c = the block's mean RGB over the mean of
 // its channels, max over channels |c_image - c_reference| (0 for a grey image of a grey scene, (max - min) /

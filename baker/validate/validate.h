@@ -21,18 +21,12 @@
 
 namespace nrad {
 
-// The SH baseline's training budget (issue 37: re-tracing every sample of a large bake took 97% of its
-// validation): at most max(kBaselineMinPoints, kBaselinePointsPerProbe x probes) of the bake's points (the
-// first of its sequence), and at most max(kBaselineMinPaths, kBaselinePathsPerProbe x probes) paths in all,
-// fewer paths per point first. Each is the smallest budget whose probes are as good as with every sample of
-// the bake (image relMSE; one set of samples varies by about 8%): the Cornell box (100 probes, 1,543 samples
-// each in the bake) needs 400 per probe (+36% at 100, +2.7% at 300, -0.6% at 400, +1.4% at 1,200, means over
-// 8 sample sets), hence the floor of 40,000 points with its 32 paths (2^21 paths); zdm2 under a 1 MB budget
-// (18,792 probes, 208 samples each, sun and sky), seen from outside (the default camera) / from above into the
-// level (docs/usage.md): every sample 0.05706 / 0.5497; 25 points per probe with 32 paths 0.05621 / 0.5713,
-// 8 paths 0.0548 / 0.5604, 4 paths 0.05467 / 0.5973, 2 paths 0.0616 / -; 50 per probe with 4 paths 0.05676 /
-// 0.5424; 12 per probe with 18 paths 0.06148, 10 with 32 0.06798 (the fit stopped at a stall of 1e-3).
-// docs/usage.md ("Baseline") has the times.
+// The SH baseline's training budget: at most max(kBaselineMinPoints, kBaselinePointsPerProbe x probes) of the
+// bake's points (the first of its sequence), and at most max(kBaselineMinPaths, kBaselinePathsPerProbe x probes)
+// paths in all, fewer paths per point first (re-tracing every sample of a large bake took nearly all of its
+// validation). Each is the smallest budget whose probes are as good as with every sample of the bake (image
+// relMSE), measured on the Cornell box and on zdm2 under a 1 MB budget: docs/usage.md ("Baseline") has the sweep
+// and the times.
 constexpr uint32_t kBaselinePointsPerProbe = 25;
 constexpr uint32_t kBaselineMinPoints = 40000;
 constexpr uint32_t kBaselinePathsPerProbe = 200;

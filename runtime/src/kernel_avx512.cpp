@@ -183,8 +183,8 @@ struct Avx512 {
 // Small chunks (a single point's call, a few points of one network) with 256-bit vectors and the same arithmetic
 // as Avx512 lane for lane: the 32-register 9-9-3 evaluation (kRegisters), the same operations in the same order,
 // 2^n by its exponent bits (exact for the exp's n in [-126, 127], as scalef). 512-bit multiply-adds lower the
-// core's clock on AVX-512 CPUs for a while after they run, which made one point per call 3-5% slower with this
-// kernel than with AVX2 when it evaluated a 16-lane vector for one point.
+// core's clock on AVX-512 CPUs for a while after they run, which made one point per call slower with this kernel
+// than with AVX2 when it evaluated a 16-lane vector for one point (docs/design.md).
 struct Avx512Narrow {
     using F = __m256;
     static constexpr int kRegisters = 32;

@@ -207,8 +207,8 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
     const GBufferIo* const gb = io.gbuffer;
     const bool tree = ctx.tree.leaves != nullptr, banded = g.band > 0.0f;
     // Two blocks per step: the pair's network evaluated once where the kernel has the registers for it. AVX2 takes
-    // pairs too, evaluating them one after the other: 2-5% faster on most G-buffer formats and batches, 2-3% slower
-    // on shaded G-buffers than one block per step.
+    // pairs too, evaluating them one after the other: faster than one block per step on most G-buffer formats and
+    // batches (docs/design.md).
     constexpr int kStep = 2;
     const bool pairs = V::kRegisters >= 32 && ctx.networks.hiddenLayers == 1 && ctx.networks.hiddenWidths[0] == 9;
     const F one = V::set1(1.0f), minusOne = V::set1(-1.0f), two = V::set1(2.0f);
@@ -230,7 +230,7 @@ void evalBlocks(const BlockContext& ctx, size_t blocks, Deferred& def) {
         int32_t network[2] = {-1, -1};
         bool result[2] = {false, false};
         F in[2][kInputs], out[2][kOutputs];
-        NRAD_UNROLL(2)  // both blocks' values in registers where they fit (6-10% more coherent evaluations per second)
+        NRAD_UNROLL(2)  // both blocks' values in registers where they fit (docs/design.md)
         for (int j = 0; j < count; ++j) {
             const size_t b = pair + size_t(j), first = b * size_t(W);
             F p[3], n[3], d[3];

@@ -113,7 +113,7 @@ NRAD_ALWAYS_INLINE inline void evalNetwork(const NetworkView& net, const typenam
 // computes it with 32 registers (the same operations in the same order): every weight is loaded once for both,
 // and the two vectors' chains of dependent multiply-adds interleave. One vector at a time is bound by the loads
 // of the weights (one per multiply-add) and by those chains, which a vector's other work is too long for the
-// out-of-order window to overlap (AVX-512, coherent points in cache: 12-14% more evaluations per second).
+// out-of-order window to overlap (the gain: docs/design.md).
 template <class V>
 NRAD_ALWAYS_INLINE inline void evalNetworkPair(const NetworkView& net, const typename V::F in[2][kInputs],
                                                typename V::F out[2][kOutputs]) {
