@@ -1,7 +1,8 @@
 // The mini-batch kernels' exact bits (Mlp::forwardBatch / backwardBatch): a hash of every output and gradient
-// of fixed networks and batches, the same constant for the SSE2 lanes (bake_unit_tests) and the plain-array
-// lanes of non-x86 machines (mlp_lanes_tests: baker/nn/mlp.cpp compiled without __SSE2__), and the value the
-// kernels gave before they were written over explicit lanes. A changed sum order, a fused multiply-add or a
+// of fixed networks and batches, the same constant for the lanes bake_unit_tests runs (AVX2 where the CPU has
+// it), the SSE2 lanes of machines without (mlp_sse2_lanes_tests) and the plain-array lanes of non-x86 machines
+// (mlp_plain_lanes_tests: baker/nn/mlp.cpp compiled without __SSE2__), and the value the kernels gave before
+// they were written over explicit lanes. A changed sum order, a fused multiply-add or a
 // lane mixed up changes it.
 #include <cstdint>
 #include <cstring>
