@@ -124,19 +124,21 @@ inline void sumsInOrder(const V8* v, int count, float* out) {
     for (; q < count; ++q) out[q] = sumInOrder(v[q]);
 }
 
-void forwardBatch(const NetworkShape& shape_, const std::vector<float>& params_, const std::vector<size_t>& offset_, const float* x,
+// Mlp::forwardBatch on a prepared workspace (prepareBatch; ws.count set): the network of `shape` with `params`
+// (each layer's at offsets[l]).
+void forwardBatch(const NetworkShape& shape, const std::vector<float>& params, const std::vector<size_t>& offsets, const float* x,
                   int count, MlpBatchWorkspace& ws) {
     const int n = (count + kLanes - 1) / kLanes * kLanes;  // padded samples hold zeros: finite, no gradient
-    for (int i = 0; i < shape_.inputs; ++i) {
+    for (int i = 0; i < shape.inputs; ++i) {
         float* v = ws.value(0, i);
-        for (int k = 0; k < count; ++k) v[k] = x[size_t(k) * size_t(shape_.inputs) + size_t(i)];
+        for (int k = 0; k < count; ++k) v[k] = x[size_t(k) * size_t(shape.inputs) + size_t(i)];
         for (int k = count; k < n; ++k) v[k] = 0.0f;
     }
-    int in = shape_.inputs;
-    for (size_t l = 0; l < (shape_.hidden.size() + 1); ++l) {
-        const bool last = l + 1 == (shape_.hidden.size() + 1);
-        const int out = last ? shape_.outputs : shape_.hidden[l];
-        const float* W = params_.data() + offset_[l];
+    int in = shape.inputs;
+    for (size_t l = 0; l < (shape.hidden.size() + 1); ++l) {
+        const bool last = l + 1 == (shape.hidden.size() + 1);
+        const int out = last ? shape.outputs : shape.hidden[l];
+        const float* W = params.data() + offsets[l];
         const float* b = W + size_t(out) * size_t(in);
         const float* prev = ws.value(l, 0);
         for (int o = 0; o < out; ++o) {
@@ -153,19 +155,20 @@ void forwardBatch(const NetworkShape& shape_, const std::vector<float>& params_,
     }
 }
 
-void backwardBatch(const NetworkShape& shape_, const std::vector<float>& params_, const std::vector<size_t>& offset_,
+// Mlp::backwardBatch: adds the batch's summed gradient to `grad`.
+void backwardBatch(const NetworkShape& shape, const std::vector<float>& params, const std::vector<size_t>& offsets,
                    MlpBatchWorkspace& ws, float* grad) {
     const int n = (ws.count + kLanes - 1) / kLanes * kLanes;
-    const size_t L = (shape_.hidden.size() + 1);
-    for (int o = 0; o < shape_.outputs; ++o) {
+    const size_t L = (shape.hidden.size() + 1);
+    for (int o = 0; o < shape.outputs; ++o) {
         float* d = ws.delta(L, o);
         for (int k = ws.count; k < n; ++k) d[k] = 0.0f;
     }
     for (size_t l = L; l-- > 0;) {
-        const int out = l + 1 == L ? shape_.outputs : shape_.hidden[l];
-        const int in = l == 0 ? shape_.inputs : shape_.hidden[l - 1];
-        const float* W = params_.data() + offset_[l];
-        float* gW = grad + offset_[l];
+        const int out = l + 1 == L ? shape.outputs : shape.hidden[l];
+        const int in = l == 0 ? shape.inputs : shape.hidden[l - 1];
+        const float* W = params.data() + offsets[l];
+        float* gW = grad + offsets[l];
         float* gb = gW + size_t(out) * size_t(in);
         const float* prev = ws.value(l, 0);
         for (int o = 0; o < out; ++o) {
