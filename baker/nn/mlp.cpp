@@ -132,24 +132,25 @@ void prepareBatch(const NetworkShape& shape, MlpBatchWorkspace& ws) {
     ws.deltas.assign(ws.at.back(), 0.0f);
 }
 
-// The batch kernels of this CPU's instruction set: AVX2 where it has it (the same bits either way).
-// NRAD_MLP_BASELINE_ONLY: the baseline's kernels only (tests of what machines without AVX2 run).
-const MlpBatchKernels& batchKernels() {
-#if defined(__x86_64__) && !defined(NRAD_MLP_BASELINE_ONLY)
-    if (cpuHasAvx2()) return kMlpBatchAvx2;
-#endif
-    return kMlpBatchBaseline;
-}
-
 }  // namespace
 
 void Mlp::forwardBatch(const float* x, int count, MlpBatchWorkspace& ws) const {
     prepareBatch(shape_, ws);
     ws.count = count;
-    batchKernels().forward(shape_, params_, offset_, x, count, ws);
+    // AVX2 where the CPU has it (the same bits either way). NRAD_MLP_BASELINE_ONLY: the baseline's kernels only
+    // (tests of what machines without AVX2 run).
+#if defined(__x86_64__) && !defined(NRAD_MLP_BASELINE_ONLY)
+    if (cpuHasAvx2()) return mlp_avx2::forwardBatch(shape_, params_, offset_, x, count, ws);
+#endif
+    mlp_sse2::forwardBatch(shape_, params_, offset_, x, count, ws);
 }
 
-void Mlp::backwardBatch(MlpBatchWorkspace& ws, float* grad) const { batchKernels().backward(shape_, params_, offset_, ws, grad); }
+void Mlp::backwardBatch(MlpBatchWorkspace& ws, float* grad) const {
+#if defined(__x86_64__) && !defined(NRAD_MLP_BASELINE_ONLY)
+    if (cpuHasAvx2()) return mlp_avx2::backwardBatch(shape_, params_, offset_, ws, grad);
+#endif
+    mlp_sse2::backwardBatch(shape_, params_, offset_, ws, grad);
+}
 
 bool Mlp::allFinite() const {
     return std::all_of(params_.begin(), params_.end(), [](float p) { return std::isfinite(p); });

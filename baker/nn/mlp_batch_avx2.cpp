@@ -2,6 +2,3 @@
 #define NRAD_MLP_KERNELS mlp_avx2
 #include "baker/nn/mlp_batch_impl.h"
 
-namespace nrad {
-extern const MlpBatchKernels kMlpBatchAvx2 = {mlp_avx2::forwardBatch, mlp_avx2::backwardBatch};
-}  // namespace nrad

@@ -2,6 +2,3 @@
 #define NRAD_MLP_KERNELS mlp_sse2
 #include "baker/nn/mlp_batch_impl.h"
 
-namespace nrad {
-extern const MlpBatchKernels kMlpBatchBaseline = {mlp_sse2::forwardBatch, mlp_sse2::backwardBatch};
-}  // namespace nrad
