@@ -11,6 +11,7 @@
 // Usage: train_bench [--steps 200000] [--repeat 3] [--threads 2]
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -20,6 +21,7 @@
 
 #include "baker/nn/adam.h"
 #include "baker/nn/mlp.h"
+#include "baker/nn/mlp_lockstep.h"
 #include "fma_peak.h"
 
 using namespace nrad;
@@ -80,17 +82,54 @@ struct Trainer {
     }
 };
 
-// Sample-epochs per second of `threads` threads, each training its own network for `steps` steps.
-double sampleRate(const NetworkShape& shape, int threads, int steps) {
+// kLockstepLanes networks in lockstep (mlp_lockstep.h), each lane a mini-batch of kBatch of its own 512 samples.
+struct LockstepTrainer {
+    LockstepNetworks nets;
+    LockstepWorkspace ws;
+    std::vector<float> samples;
+    LockstepLane lanes[kLockstepLanes];
+    int t = 0;
+
+    explicit LockstepTrainer(const NetworkShape& shape, uint64_t seed) : nets(shape), samples(size_t(512) * kLockstepLanes * kPackedFloats) {
+        for (size_t i = 0; i < samples.size(); ++i) samples[i] = float((i * 37 + seed) % 101) / 101.0f - 0.3f;
+        for (int j = 0; j < kLockstepLanes; ++j) {
+            Mlp mlp(shape);
+            mlp.initialize(seed * 16 + uint64_t(j), 1.0f);
+            nets.setLane(j, mlp.parameters());
+            lanes[j].count = kBatch;
+            lanes[j].learningRate = 1e-4f;
+        }
+    }
+    void step() {
+        ++t;
+        for (int j = 0; j < kLockstepLanes; ++j) {
+            for (int k = 0; k < kBatch; ++k)
+                lanes[j].rows[k] = &samples[((size_t(j) * 512) + size_t((t * kBatch + k) % 512)) * kPackedFloats];
+            lanes[j].c1 = float(1.0 - std::pow(0.9, t));
+            lanes[j].c2 = float(1.0 - std::pow(0.999, t));
+        }
+        lockstepTrainStep(nets, lanes, LossKind::RelativeL2, ws);
+    }
+};
+
+// Sample-epochs per second of `threads` threads, each training its own network (lockstep: its own
+// kLockstepLanes networks) for `steps` steps.
+double sampleRate(const NetworkShape& shape, int threads, int steps, bool lockstep) {
     std::vector<std::thread> pool;
     const auto t0 = Clock::now();
+    const int perStep = lockstep ? kLockstepLanes : 1;
     for (int t = 0; t < threads; ++t)
-        pool.emplace_back([&shape, steps, t] {
-            Trainer tr(shape, uint64_t(t) + 1);
-            for (int s = 0; s < steps; ++s) tr.step(nullptr);
+        pool.emplace_back([&shape, steps, t, lockstep, perStep] {
+            if (lockstep) {
+                LockstepTrainer tr(shape, uint64_t(t) + 1);
+                for (int s = 0; s < steps / perStep; ++s) tr.step();
+            } else {
+                Trainer tr(shape, uint64_t(t) + 1);
+                for (int s = 0; s < steps; ++s) tr.step(nullptr);
+            }
         });
     for (std::thread& t : pool) t.join();
-    return double(threads) * double(steps) * kBatch / std::chrono::duration<double>(Clock::now() - t0).count();
+    return double(threads) * double(steps / perStep * perStep) * kBatch / std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
 }  // namespace
@@ -122,13 +161,29 @@ int main(int argc, char** argv) {
             double t[3] = {0, 0, 0};
             for (int s = 0; s < steps / 4; ++s) tr.step(t);
             for (int k = 0; k < 3; ++k) best[k] = std::min(best[k], t[k] / double(steps / 4) * 1e9);
-            rate1 = std::max(rate1, sampleRate(shape, 1, steps));
-            rateN = std::max(rateN, sampleRate(shape, threads, steps));
+            rate1 = std::max(rate1, sampleRate(shape, 1, steps, false));
+            rateN = std::max(rateN, sampleRate(shape, threads, steps, false));
         }
         const double macs = macsPerSample(shape);
         std::printf("| %s | %.0f / %.0f / %.0f | %.3g M | %.1f%% | %.3g M | %.2fx | %.1f%% |\n", shapeName(shape).c_str(), best[0], best[1],
                     best[2], rate1 * 1e-6, peak1 > 0 ? 100.0 * rate1 * macs / peak1 : 0.0, rateN * 1e-6, rateN / rate1,
                     peakN > 0 ? 100.0 * rateN * macs / peakN : 0.0);
+    }
+    std::printf("\nLockstep, %d networks a step (mlp_lockstep.h):\n| shape | ns per step of %d x %d | sample-epochs/s, 1 thread | of the "
+                "1-thread peak | %d threads | speed-up | of the %d-thread peak |\n|---|---|---|---|---|---|---|\n",
+                kLockstepLanes, kLockstepLanes, kBatch, threads, threads);
+    for (const std::vector<int>& hidden : std::vector<std::vector<int>>{{9}, {16}, {32}, {16, 16}}) {
+        NetworkShape shape;
+        shape.hidden = hidden;
+        double rate1 = 0.0, rateN = 0.0;
+        for (int r = 0; r < repeat; ++r) {
+            rate1 = std::max(rate1, sampleRate(shape, 1, steps, true));
+            rateN = std::max(rateN, sampleRate(shape, threads, steps, true));
+        }
+        const double macs = macsPerSample(shape);
+        std::printf("| %s | %.0f | %.3g M | %.1f%% | %.3g M | %.2fx | %.1f%% |\n", shapeName(shape).c_str(),
+                    1e9 * kLockstepLanes * kBatch / rate1, rate1 * 1e-6, peak1 > 0 ? 100.0 * rate1 * macs / peak1 : 0.0, rateN * 1e-6,
+                    rateN / rate1, peakN > 0 ? 100.0 * rateN * macs / peakN : 0.0);
     }
     return 0;
 }

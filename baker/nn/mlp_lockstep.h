@@ -1,0 +1,81 @@
+// Networks of one shape trained in lockstep, one network per lane of a SIMD register (issue 40): every
+// operation is vertical (lane j only ever meets lane j), so there are no horizontal sums, no broadcasts and no
+// shuffles in the arithmetic, and each lane computes exactly what a plain loop over its own network computes:
+// every multiply-add fused (std::fma in the plain lanes), every sum in the order written below. The result of a
+// lane is therefore independent of the other lanes, of the lane it runs in and of the instruction set
+// (tests/baker/nn/mlp_lockstep_test.cpp holds each to a plain scalar reference, bit for bit).
+//
+// One step (lockstepTrainStep) is a whole mini-batch step of each lane's network: forward, the regression loss's
+// gradient, backpropagation, the gradient summed over the batch, divided by its count, the L2 penalty, and Adam.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+#include "baker/nn/loss.h"
+#include "baker/nn/mlp.h"
+
+namespace nrad {
+
+constexpr int kLockstepLanes = 8;
+// A training sample packed for the lanes: inputs (9), loss targets in the output space (3, lossTarget), per-channel
+// loss weights (3), one float of padding.
+constexpr int kPackedInputs = 9, kPackedTarget = 9, kPackedWeight = 12, kPackedFloats = 16;
+
+// Parameters and Adam's moments of kLockstepLanes networks, interleaved: parameter q of lane j at
+// [q kLockstepLanes + j] (q in the Mlp layout).
+struct LockstepNetworks {
+    explicit LockstepNetworks(const NetworkShape& shape);
+    NetworkShape shape;
+    std::vector<size_t> offsets;  // of each layer's parameters (W out x in, then b), as Mlp's
+    std::vector<float> params, m, v;
+    size_t parameterCount() const { return offsets.empty() ? 0 : params.size() / kLockstepLanes; }
+    // Lane j's parameters in or out, in the Mlp layout; setLane also zeroes its Adam moments.
+    void setLane(int lane, const std::vector<float>& p);
+    void getLane(int lane, std::vector<float>& p) const;
+};
+
+// One step's inputs per lane: count samples (0: the lane rests, nothing of it changes), rows[k] the packed sample
+// k (kPackedFloats floats), the learning rate, the L2 penalty per parameter (added to the mean gradient as
+// weightDecay x parameter on every parameter but the output biases, where > 0), and Adam's bias corrections
+// c1 = 1 - beta1^t, c2 = 1 - beta2^t of this step.
+struct LockstepLane {
+    int count = 0;
+    const float* rows[MlpBatchWorkspace::kMaxBatch] = {};
+    float learningRate = 0.0f, weightDecay = 0.0f, c1 = 1.0f, c2 = 1.0f;
+};
+
+// Scratch space of a step, sized on first use.
+struct LockstepWorkspace {
+    std::vector<float> values, deltas, grad;
+    std::vector<size_t> at;  // each layer's activations (layer 0: the packed rows)
+};
+
+// Adam's constants, the same as Adam's (adam.h), and a step's rate and epsilon with the bias corrections folded in
+// (Kingma and Ba, Sec. 2): p -= rate m / (sqrt(v) + epsilon), rate = learningRate sqrt(c2) / c1,
+// epsilon = 1e-8 sqrt(c2).
+constexpr float kAdamBeta1 = 0.9f, kAdamBeta2 = 0.999f, kAdamEpsilon = 1e-8f;
+struct AdamRates {
+    float rate, epsilon;
+};
+inline AdamRates adamRates(float learningRate, float c1, float c2) {
+    const double root = std::sqrt(double(c2));
+    return {float(double(learningRate) * root / double(c1)), float(double(kAdamEpsilon) * root)};
+}
+
+// One mini-batch step of every lane with count > 0. The loss: LossKind's regression gradient (lossTarget already
+// applied to the packed targets), each channel weighing its packed weight. Inputs, shape: 9 in, 3 out.
+void lockstepTrainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+
+// The kernels of one instruction set; lockstepTrainStep picks one at run time.
+namespace lockstep_plain {
+void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+}
+#if defined(__x86_64__)
+namespace lockstep_avx2 {  // AVX2 with FMA
+void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+}
+#endif
+
+}  // namespace nrad
