@@ -41,7 +41,9 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
     quick.maxAttempts = 1;
     quick.curveEvery = 1 << 30;
     return [&samples, quick](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
-        std::vector<double> out(ids.size(), 0.0);
+        // Each cell's (up to 2,000) samples, positions relative to their bounding box, in parallel; then every
+        // cell's network trained at once.
+        std::vector<std::vector<VoxelSample>> inputs(ids.size());
         tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
             for (size_t k = r.begin(); k != r.end(); ++k) {
                 const std::vector<uint32_t>& set = *sets[k];
@@ -53,12 +55,21 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
                     hi = glm::max(hi, samples[i].position);
                 }
                 const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-6f));
-                std::vector<VoxelSample> v;
                 for (size_t j = 0; j < set.size(); j += stride)
-                    v.push_back({&samples[set[j]], 1.0f, 2.0f * (samples[set[j]].position - lo) / extent - 1.0f});
-                out[k] = trainVoxel(ids[k], v, quick).heldOutRelMse * double(set.size());
+                    inputs[k].push_back({&samples[set[j]], 1.0f, 2.0f * (samples[set[j]].position - lo) / extent - 1.0f});
             }
         });
+        std::vector<uint32_t> trained;
+        std::vector<const std::vector<VoxelSample>*> trainedSamples;
+        for (size_t k = 0; k < ids.size(); ++k)
+            if (!inputs[k].empty()) {
+                trained.push_back(ids[k]);
+                trainedSamples.push_back(&inputs[k]);
+            }
+        const std::vector<VoxelTrainResult> results = trainVoxels(trained, trainedSamples, quick);
+        std::vector<double> out(ids.size(), 0.0);
+        for (size_t k = 0, t = 0; k < ids.size(); ++k)
+            if (!inputs[k].empty()) out[k] = results[t++].heldOutRelMse * double(sets[k]->size());
         return out;
     };
 }
@@ -277,13 +288,12 @@ void trainCells(const BakeSettings& settings, const BakeCells& cells, const Bake
         if (!cells.byVoxel[v].empty()) occupied.push_back(v);
     result.voxels.resize(occupied.size());
     const TrainSettings start = startTrainSettings(settings);
+    std::vector<const std::vector<VoxelSample>*> samples;
+    for (uint32_t v : occupied) samples.push_back(&cells.byVoxel[v]);
     std::atomic<size_t> done{0};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, occupied.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t k = r.begin(); k != r.end(); ++k) {
-            result.voxels[k] = trainVoxel(occupied[k], cells.byVoxel[occupied[k]], start);
-            size_t d = ++done;
-            if (progress.training) progress.training(double(d) / double(occupied.size()));
-        }
+    result.voxels = trainVoxels(occupied, samples, start, [&] {
+        const size_t d = ++done;
+        if (progress.training) progress.training(double(d) / double(occupied.size()));
     });
 }
 

@@ -1,5 +1,6 @@
 // Per-voxel training with Adam, early stopping on a held-out split, and failure recovery.
 #include "baker/bake/trainer.h"
+#include "baker/bake/training_parts.h"
 
 #include <algorithm>
 #include <chrono>
@@ -71,20 +72,7 @@ VoxelTrainResult trainVoxel(const VoxelGrid& grid, uint32_t voxel, const std::ve
     return trainVoxel(voxel, v, settings);
 }
 
-namespace {
-
-// A network's samples as the optimizer sees them: encoded inputs, targets (demodulated if asked), the
-// reflectance they are multiplied back by, per-channel loss weights (demodulation's and the blend weight),
-// and the held-out split, a hash of (seed, voxel, sample, salt), at least one on each side.
-struct PreparedSamples {
-    const std::vector<VoxelSample>* entries = nullptr;
-    std::vector<float> inputs;
-    std::vector<glm::vec3> targets, modulation, weights;
-    std::vector<size_t> train, heldOut;
-    const std::vector<size_t>& evalSet() const { return heldOut.empty() ? train : heldOut; }  // one sample: judged on itself
-    const TrainingSample& sample(size_t i) const { return *(*entries)[i].sample; }
-    float blend(size_t i) const { return (*entries)[i].weight; }
-};
+namespace trainer_detail {
 
 PreparedSamples prepareSamples(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings, uint32_t salt) {
     PreparedSamples d;
@@ -164,8 +152,6 @@ void trainEpoch(Mlp& mlp, Adam& adam, MlpBatchWorkspace& ws, const PreparedSampl
     }
 }
 
-// Weighted relMSE over `set` as shaded: the prediction multiplied back by the reflectance, against the
-// scattered radiance, weighted as the runtime weighs this network there.
 double shadedError(const Mlp& mlp, MlpBatchWorkspace& ws, const PreparedSamples& d, const std::vector<size_t>& set,
                    const TrainSettings& settings, format::OutputTransform transform, float scale) {
     // In batches through the mini-batch kernels (the same outputs as the per-sample pass, bit for bit).
@@ -186,7 +172,6 @@ double shadedError(const Mlp& mlp, MlpBatchWorkspace& ws, const PreparedSamples&
     return w > 0.0 ? e / w : 0.0;
 }
 
-// Whether every target of the network is grey (its three channels within 1e-4 of their mean): no colour to learn.
 bool greyTargets(const PreparedSamples& d) {
     for (const glm::vec3& t : d.targets) {
         const float m = (t.x + t.y + t.z) / 3.0f, tol = 1e-4f * std::abs(m);
@@ -195,8 +180,6 @@ bool greyTargets(const PreparedSamples& d) {
     return true;
 }
 
-// The output layer's three rows (weights and bias) replaced by their mean: the network then outputs the mean of
-// its channels in each, grey, with a luminance error no larger than the channels' mean error (convexity).
 void averageOutputs(std::vector<float>& params, const NetworkShape& shape) {
     const size_t nOut = size_t(shape.outputs), in = size_t(shape.hidden.back()), n = params.size();
     float* W = &params[n - nOut - nOut * in];
@@ -213,8 +196,6 @@ void averageOutputs(std::vector<float>& params, const NetworkShape& shape) {
     for (size_t o = 0; o < nOut; ++o) b[o] = mb;
 }
 
-// Whether an attempt at training failed, and how: non-finite weights (`nonFinite`), every first-layer ReLU dead
-// on every training input, or an output that does not depend on the input although the targets vary.
 std::string attemptFailure(const Mlp& mlp, const PreparedSamples& d, const std::vector<size_t>& train, const TrainSettings& settings,
                            float invScale, bool nonFinite) {
     if (nonFinite) return "non-finite weights or error";
@@ -244,106 +225,9 @@ std::string attemptFailure(const Mlp& mlp, const PreparedSamples& d, const std::
     return {};
 }
 
-// One training of the voxel's network with an L2 penalty of weightDecay / (training samples) on every
-// parameter but the output biases (added to each step's mean gradient), from the initialisation of `restart`
-// (0: the first).
-VoxelTrainResult trainVoxelWith(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings,
-                                float weightDecay, int restart) {
-    auto start = std::chrono::steady_clock::now();
-    VoxelTrainResult result;
-    result.voxel = voxel;
-    result.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-    const int nOut = settings.shape.outputs;
-    const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
-    const std::vector<size_t>& train = d.train;
-    result.trainCount = train.size();
-    result.heldOutCount = d.heldOut.size();
-    const std::vector<size_t>& evalSet = d.evalSet();
+}  // namespace trainer_detail
 
-    // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
-    double meanLum = 0.0, weightSum = 0.0;
-    for (size_t i : train) {
-        meanLum += double(d.blend(i)) * std::max(0.0f, luminancef(d.targets[i]));
-        weightSum += double(d.blend(i));
-    }
-    meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;
-    result.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
-    const float invScale = 1.0f / result.scale;
-
-    Mlp mlp(settings.shape);
-    MlpBatchWorkspace bws;
-    auto evaluate = [&](const std::vector<size_t>& set) { return shadedError(mlp, bws, d, set, settings, result.transform, result.scale); };
-
-    std::vector<float> keptParams;  // of the first attempt that did not fail
-    for (int attempt = 0; attempt < settings.maxAttempts; ++attempt) {
-        ++result.attempts;
-        uint64_t initSeed = (uint64_t(settings.seed) << 32) ^ (uint64_t(voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart) << 4);
-        mlp.initialize(initSeed, settings.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
-        Adam adam(mlp.parameters().size());
-        SplitMix64 order(initSeed ^ 0x5851f42d4c957f2dull);
-        std::vector<size_t> perm = train;
-        double best = std::numeric_limits<double>::infinity();
-        std::vector<float> bestParams = mlp.parameters();
-        std::vector<TrainCurvePoint> curve;
-        int sinceBest = 0, epoch = 0;
-        bool diverged = false;
-        for (; epoch < settings.epochs; ++epoch) {
-            for (size_t i = perm.size(); i > 1; --i) std::swap(perm[i - 1], perm[size_t(order.below(i))]);
-            const float lr = exponentialDecay(settings.learningRate, 0.1f, float(epoch) / float(std::max(1, settings.epochs)));
-            trainEpoch(mlp, adam, bws, d, perm, settings, invScale, lr, weightDecay);
-            if (!mlp.allFinite()) {
-                diverged = true;
-                break;
-            }
-            double err = evaluate(evalSet);
-            if (!std::isfinite(err)) {
-                diverged = true;
-                break;
-            }
-            if (epoch % std::max(1, settings.curveEvery) == 0)
-                curve.push_back({epoch, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), err});
-            if (err < best) {
-                best = err;
-                bestParams = mlp.parameters();
-                sinceBest = 0;
-            } else if (++sinceBest > settings.patience) {
-                break;
-            }
-        }
-        mlp.parameters() = bestParams;
-
-        const std::string failure = attemptFailure(mlp, d, train, settings, invScale, diverged && !std::isfinite(best));
-        if (failure.empty()) {
-            result.curve = std::move(curve);
-            result.epochs = epoch;
-            keptParams = mlp.parameters();
-            break;
-        }
-        result.events.push_back("attempt " + std::to_string(attempt + 1) + ": " + failure + ", re-initialised");
-    }
-
-    if (keptParams.empty()) {
-        // Every attempt failed: store a network that outputs the voxel's mean radiance, always finite.
-        result.fallback = true;
-        result.events.push_back("fallback: constant network with the voxel's mean radiance");
-        std::fill(mlp.parameters().begin(), mlp.parameters().end(), 0.0f);
-        glm::dvec3 mean(0.0);
-        for (size_t i : train) mean += double(d.blend(i)) * glm::dvec3(d.targets[i]);
-        if (weightSum > 0.0) mean /= weightSum;
-        size_t outBias = mlp.parameters().size() - size_t(nOut);
-        for (int c = 0; c < nOut; ++c) mlp.parameters()[outBias + size_t(c)] = lossTarget(settings.loss, invScale, float(mean[c]));
-        keptParams = mlp.parameters();
-    }
-    mlp.parameters() = keptParams;
-    result.params = keptParams;
-    result.heldOutRelMse = evaluate(evalSet);
-    result.trainRelMse = evaluate(train);
-    result.weightDecay = weightDecay;
-    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return result;
-}
-
-}  // namespace
+using namespace trainer_detail;
 
 // Optimizer steps of one network in one round of integral training at the full rate (about twice what a network's
 // 2,000 samples x 4 passes take in batches of 32).
@@ -394,35 +278,6 @@ VoxelTrainResult continueVoxel(const std::vector<VoxelSample>& entries, const Tr
     result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     result.curve.push_back({int(generation), result.seconds, result.heldOutRelMse});
     return result;
-}
-
-VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
-    VoxelTrainResult best;
-    double seconds = 0.0;
-    const std::vector<float> none = {0.0f};
-    for (float decay : settings.weightDecays.empty() ? none : settings.weightDecays)
-        for (int restart = 0; restart < std::max(1, settings.restarts); ++restart) {
-            VoxelTrainResult r = trainVoxelWith(voxel, entries, settings, decay, restart);
-            seconds += r.seconds;
-            // The lowest held-out error wins (the first on a tie); a fallback only if every candidate fell back.
-            const bool better = best.params.empty() || (best.fallback && !r.fallback) ||
-                                (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
-            if (better) best = std::move(r);
-        }
-    if (settings.greyWhereGrey && !best.params.empty()) {
-        // After the choice (which stays the one made on the channels): grey where every target is.
-        const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
-        if (greyTargets(d)) {
-            averageOutputs(best.params, settings.shape);
-            Mlp mlp(settings.shape);
-            mlp.parameters() = best.params;
-            MlpBatchWorkspace bws;
-            best.heldOutRelMse = shadedError(mlp, bws, d, d.evalSet(), settings, best.transform, best.scale);
-            best.trainRelMse = shadedError(mlp, bws, d, d.train, settings, best.transform, best.scale);
-        }
-    }
-    best.seconds = seconds;
-    return best;
 }
 
 }  // namespace nrad

@@ -100,6 +100,12 @@ double relativeSquaredError(const glm::vec3& prediction, const glm::vec3& refere
 // Fits the network of `voxel` to its samples, each weighing VoxelSample::weight in the loss, the scale
 // and the reported (weighted) errors.
 VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& samples, const TrainSettings& settings);
+// The same for many voxels at once (trainer_lockstep.cpp): every training (a voxel under one weight decay and
+// initialisation) runs in a lane of networks trained in lockstep (baker/nn/mlp_lockstep.h), the lanes on the
+// threads of the current task arena; result k is trainVoxel(voxels[k], *samples[k], settings), bit for bit, whatever
+// the threads or the other voxels. onDone (if given) is called once per voxel as it finishes, from any thread.
+std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
+                                          const TrainSettings& settings, const std::function<void()>& onDone = {});
 // A network between the generations of training within the integral equation (baker.h): what it has become
 // (parameters, fixed output scale, the errors of its latest generation) and its optimizer's state.
 struct NetworkState {

@@ -1,0 +1,356 @@
+// Training the voxels' networks, many at once: every training (a voxel's network under one weight decay, from one
+// initialisation) is a job that runs in one lane of networks trained in lockstep (baker/nn/mlp_lockstep.h), eight
+// to a register; a lane whose job ends takes the next. Each job keeps its own schedule: its samples' order, its
+// learning rate and Adam's step count, its held-out error after every epoch, early stopping, re-initialisation
+// after a failed attempt and the constant fallback (trainer.h). A lane's arithmetic never meets another lane's, so
+// a job's result is the same whichever lane, group or thread runs it and whatever runs beside it.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "baker/bake/trainer.h"
+#include "baker/bake/training_parts.h"
+#include "baker/nn/mlp_lockstep.h"
+#include "baker/nn/schedule.h"
+#include "baker/util/maths.h"
+
+namespace nrad {
+
+using namespace trainer_detail;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// One training of a voxel's network with an L2 penalty of weightDecay / (training samples) on every parameter but
+// the output biases, from the initialisation of `restart` (0: the first): attempts until one does not fail, each
+// epochs of mini-batch steps in a lane, the parameters with the lowest held-out error kept.
+class Training {
+public:
+    Training(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings, float weightDecay, int restart)
+        : s_(settings), decay_(weightDecay), restart_(restart), d_(prepareSamples(voxel, entries, settings, 0)), mlp_(settings.shape) {
+        result_.voxel = voxel;
+        result_.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+        result_.trainCount = d_.train.size();
+        result_.heldOutCount = d_.heldOut.size();
+        result_.weightDecay = weightDecay;
+        // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
+        double meanLum = 0.0;
+        for (size_t i : d_.train) {
+            meanLum += double(d_.blend(i)) * std::max(0.0f, luminancef(d_.targets[i]));
+            weightSum_ += double(d_.blend(i));
+        }
+        meanLum = weightSum_ > 0.0 ? meanLum / weightSum_ : 0.0;
+        result_.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
+        invScale_ = 1.0f / result_.scale;
+        // Each sample packed for the lanes: inputs, loss targets, loss weights.
+        const size_t nIn = size_t(settings.shape.inputs);
+        packed_.assign(d_.targets.size() * kPackedFloats, 0.0f);
+        for (size_t i = 0; i < d_.targets.size(); ++i) {
+            float* row = &packed_[i * kPackedFloats];
+            std::copy_n(&d_.inputs[i * nIn], nIn, row);
+            for (int c = 0; c < 3; ++c) {
+                row[kPackedTarget + c] = lossTarget(settings.loss, invScale_, d_.targets[i][c]);
+                row[kPackedWeight + c] = d_.weights[i][c];
+            }
+        }
+        // The held-out samples as each epoch's check reads them: inputs in a row, then per sample its blend weight,
+        // reflectance, radiance and 1 / (radiance^2 + 0.01) per channel.
+        for (size_t i : d_.evalSet()) {
+            heldOutInputs_.insert(heldOutInputs_.end(), &d_.inputs[i * nIn], &d_.inputs[i * nIn] + nIn);
+            const glm::vec3 ref = d_.sample(i).radiance;
+            heldOutTerms_.push_back(d_.blend(i));
+            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(d_.modulation[i][c]);
+            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(ref[c]);
+            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(float(1.0 / (double(ref[c]) * double(ref[c]) + 0.01)));
+            heldOutWeight_ += double(d_.blend(i));
+        }
+        batch_ = size_t(std::clamp(settings.batchSize, 1, MlpBatchWorkspace::kMaxBatch));
+        // Nothing to learn where every target is zero (no light reaches the voxel's surfaces): the zero network, exact,
+        // instead of a trained one's noise around zero.
+        if (!d_.targets.empty() && std::all_of(d_.targets.begin(), d_.targets.end(), [](const glm::vec3& t) { return t == glm::vec3(0.0f); })) {
+            kept_.assign(mlp_.parameters().size(), 0.0f);
+            finish();
+            return;
+        }
+        if (settings.maxAttempts > 0) startAttempt();
+        else finish();
+    }
+
+    bool done() const { return done_; }
+    // Whether the lane's parameters must be replaced by freshParams() (a new attempt began); once per attempt.
+    bool takeFresh() { return std::exchange(fresh_, false); }
+    const std::vector<float>& freshParams() const { return mlp_.parameters(); }
+    // Whether the next thing to do is a step (else an epoch without samples ends at once: endEpoch).
+    bool wantsStep() const { return !done_ && at_ < perm_.size(); }
+
+    // This job's next mini-batch, as its lane's input.
+    void fill(LockstepLane& lane) {
+        lane.count = int(std::min(batch_, perm_.size() - at_));
+        for (int k = 0; k < lane.count; ++k) lane.rows[k] = &packed_[perm_[at_ + size_t(k)] * kPackedFloats];
+        lane.learningRate = rate_;
+        lane.weightDecay = decay_ / float(std::max<size_t>(1, d_.train.size()));
+        beta1Power_ *= kAdamBeta1;
+        beta2Power_ *= kAdamBeta2;
+        lane.c1 = float(1.0 - beta1Power_);
+        lane.c2 = float(1.0 - beta2Power_);
+    }
+    // After a step of `count` samples: whether the epoch is over (then endEpoch).
+    bool stepped(int count, double seconds) {
+        at_ += size_t(count);
+        seconds_ += seconds;
+        return at_ >= perm_.size();
+    }
+    // The epoch's held-out error of the lane's parameters, and what follows: the next epoch, the next attempt or the end.
+    void endEpoch(const std::vector<float>& params) {
+        const Clock::time_point t0 = Clock::now();
+        mlp_.parameters() = params;
+        double err = 0.0;
+        diverged_ = !mlp_.allFinite() || !std::isfinite(err = epochError());
+        if (diverged_) return endAttempt(t0);
+        if (epoch_ % std::max(1, s_.curveEvery) == 0) curve_.push_back({epoch_, seconds_, err});
+        if (err < best_) {
+            best_ = err;
+            bestParams_ = params;
+            sinceBest_ = 0;
+        } else if (++sinceBest_ > s_.patience) {
+            return endAttempt(t0);
+        }
+        if (++epoch_ >= s_.epochs) return endAttempt(t0);
+        beginEpoch();
+        seconds_ += secondsSince(t0);
+    }
+    VoxelTrainResult takeResult() { return std::move(result_); }
+
+private:
+    double evaluate(const std::vector<size_t>& set) { return shadedError(mlp_, bws_, d_, set, s_, result_.transform, result_.scale); }
+    // The held-out error of mlp_ as each epoch's check sees it: shadedError's (the weighted mean relMSE as shaded) to
+    // rounding, its per-sample terms in float with the reciprocals taken once (shadedError's divisions in double cost
+    // a sixth of the training), summed in double.
+    double epochError() {
+        constexpr size_t B = MlpBatchWorkspace::kMaxBatch, kTerms = 10;
+        const size_t count = heldOutTerms_.size() / kTerms, nIn = size_t(s_.shape.inputs), L = mlp_.layers();
+        double e = 0.0;
+        for (size_t b = 0; b < count; b += B) {
+            const int n = int(std::min(B, count - b));
+            mlp_.forwardBatch(&heldOutInputs_[b * nIn], n, bws_);
+            for (int k = 0; k < n; ++k) {
+                const float* t = &heldOutTerms_[(b + size_t(k)) * kTerms];
+                float sum = 0.0f;
+                for (int c = 0; c < 3; ++c) {
+                    const float diff = t[1 + c] * eval::decodeOutput(result_.transform, result_.scale, bws_.value(L, c)[k]) - t[4 + c];
+                    sum += diff * diff * t[7 + c];
+                }
+                e += double(t[0]) * double(sum);
+            }
+        }
+        return heldOutWeight_ > 0.0 ? e / (3.0 * heldOutWeight_) : 0.0;
+    }
+
+    void startAttempt() {
+        const int attempt = result_.attempts++;
+        const uint64_t initSeed = (uint64_t(s_.seed) << 32) ^ (uint64_t(result_.voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart_) << 4);
+        mlp_.initialize(initSeed, s_.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
+        order_ = SplitMix64(initSeed ^ 0x5851f42d4c957f2dull);
+        perm_ = d_.train;
+        best_ = std::numeric_limits<double>::infinity();
+        bestParams_ = mlp_.parameters();
+        curve_.clear();
+        sinceBest_ = 0;
+        epoch_ = 0;
+        diverged_ = false;
+        beta1Power_ = beta2Power_ = 1.0;
+        fresh_ = true;
+        if (s_.epochs <= 0) return endAttempt(Clock::now());
+        beginEpoch();
+    }
+    void beginEpoch() {
+        for (size_t i = perm_.size(); i > 1; --i) std::swap(perm_[i - 1], perm_[size_t(order_.below(i))]);
+        rate_ = exponentialDecay(s_.learningRate, 0.1f, float(epoch_) / float(std::max(1, s_.epochs)));
+        at_ = 0;
+    }
+    void endAttempt(Clock::time_point t0) {
+        mlp_.parameters() = bestParams_;
+        const std::string failure = attemptFailure(mlp_, d_, d_.train, s_, invScale_, diverged_ && !std::isfinite(best_));
+        seconds_ += secondsSince(t0);
+        if (failure.empty()) {
+            result_.curve = std::move(curve_);
+            result_.epochs = epoch_;
+            kept_ = bestParams_;
+            return finish();
+        }
+        result_.events.push_back("attempt " + std::to_string(result_.attempts) + ": " + failure + ", re-initialised");
+        if (result_.attempts < s_.maxAttempts) return startAttempt();
+        finish();
+    }
+    void finish() {
+        const Clock::time_point t0 = Clock::now();
+        if (kept_.empty()) {
+            // Every attempt failed: store a network that outputs the voxel's mean radiance, always finite.
+            result_.fallback = true;
+            result_.events.push_back("fallback: constant network with the voxel's mean radiance");
+            std::fill(mlp_.parameters().begin(), mlp_.parameters().end(), 0.0f);
+            glm::dvec3 mean(0.0);
+            for (size_t i : d_.train) mean += double(d_.blend(i)) * glm::dvec3(d_.targets[i]);
+            if (weightSum_ > 0.0) mean /= weightSum_;
+            const int nOut = s_.shape.outputs;
+            const size_t outBias = mlp_.parameters().size() - size_t(nOut);
+            for (int c = 0; c < nOut; ++c) mlp_.parameters()[outBias + size_t(c)] = lossTarget(s_.loss, invScale_, float(mean[c]));
+            kept_ = mlp_.parameters();
+        }
+        mlp_.parameters() = kept_;
+        result_.params = kept_;
+        result_.heldOutRelMse = evaluate(d_.evalSet());
+        result_.trainRelMse = evaluate(d_.train);
+        result_.seconds = seconds_ + secondsSince(t0);
+        done_ = true;
+        fresh_ = false;
+    }
+
+    const TrainSettings& s_;
+    float decay_;
+    int restart_;
+    PreparedSamples d_;
+    Mlp mlp_;
+    MlpBatchWorkspace bws_;
+    VoxelTrainResult result_;
+    std::vector<float> packed_, heldOutInputs_, heldOutTerms_, bestParams_, kept_;
+    std::vector<size_t> perm_;
+    std::vector<TrainCurvePoint> curve_;
+    SplitMix64 order_{0};
+    double weightSum_ = 0.0, heldOutWeight_ = 0.0, best_ = 0.0, beta1Power_ = 1.0, beta2Power_ = 1.0, seconds_ = 0.0;
+    float invScale_ = 1.0f, rate_ = 0.0f;
+    size_t batch_ = 1, at_ = 0;
+    int epoch_ = 0, sinceBest_ = 0;
+    bool diverged_ = false, fresh_ = false, done_ = false;
+};
+
+// The candidates of one voxel (its trainings, in weight-decay then restart order) made into its result: the lowest
+// held-out error wins (the first on a tie; a fallback only if every candidate fell back), grey where every target is.
+VoxelTrainResult chooseCandidate(std::vector<VoxelTrainResult>& candidates, const std::vector<VoxelSample>& entries,
+                                 const TrainSettings& settings) {
+    VoxelTrainResult best;
+    double seconds = 0.0;
+    for (VoxelTrainResult& r : candidates) {
+        seconds += r.seconds;
+        const bool better = best.params.empty() || (best.fallback && !r.fallback) ||
+                            (best.fallback == r.fallback && r.heldOutRelMse < best.heldOutRelMse);
+        if (better) best = std::move(r);
+    }
+    if (settings.greyWhereGrey && !best.params.empty()) {
+        // After the choice (which stays the one made on the channels): grey where every target is.
+        const PreparedSamples d = prepareSamples(best.voxel, entries, settings, 0);
+        if (greyTargets(d)) {
+            averageOutputs(best.params, settings.shape);
+            Mlp mlp(settings.shape);
+            mlp.parameters() = best.params;
+            MlpBatchWorkspace bws;
+            best.heldOutRelMse = shadedError(mlp, bws, d, d.evalSet(), settings, best.transform, best.scale);
+            best.trainRelMse = shadedError(mlp, bws, d, d.train, settings, best.transform, best.scale);
+        }
+    }
+    best.seconds = seconds;
+    return best;
+}
+
+}  // namespace
+
+std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
+                                          const TrainSettings& settings, const std::function<void()>& onDone) {
+    const std::vector<float> none = {0.0f};
+    const std::vector<float>& decays = settings.weightDecays.empty() ? none : settings.weightDecays;
+    const size_t perVoxel = decays.size() * size_t(std::max(1, settings.restarts));
+    // The jobs, the voxels with the most samples first (the longest trainings start first, the tail is short).
+    std::vector<size_t> order(voxels.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return samples[a]->size() > samples[b]->size(); });
+    struct Job {
+        size_t voxel;  // index into voxels
+        float decay;
+        int restart;
+    };
+    std::vector<Job> jobs;
+    for (size_t k : order)
+        for (float decay : decays)
+            for (int restart = 0; restart < std::max(1, settings.restarts); ++restart) jobs.push_back({k, decay, restart});
+
+    std::vector<std::vector<VoxelTrainResult>> candidates(voxels.size(), std::vector<VoxelTrainResult>(perVoxel));
+    std::vector<std::atomic<size_t>> remaining(voxels.size());
+    for (std::atomic<size_t>& r : remaining) r = perVoxel;
+    std::vector<VoxelTrainResult> out(voxels.size());
+    std::atomic<size_t> next{0};
+
+    // One group of lanes: takes jobs until none is left, stepping all its busy lanes together.
+    auto runGroup = [&]() {
+        LockstepNetworks nets(settings.shape);
+        LockstepWorkspace ws;
+        std::unique_ptr<Training> lane[kLockstepLanes];
+        size_t jobOf[kLockstepLanes] = {};
+        std::vector<float> params;
+        auto retire = [&](int j) {
+            const Job& job = jobs[jobOf[j]];
+            const size_t slot = size_t(&job - &jobs[0]) % perVoxel;  // jobs of a voxel are consecutive, in candidate order
+            candidates[job.voxel][slot] = lane[j]->takeResult();
+            lane[j].reset();
+            if (--remaining[job.voxel] == 0) {
+                out[job.voxel] = chooseCandidate(candidates[job.voxel], *samples[job.voxel], settings);
+                candidates[job.voxel].clear();
+                if (onDone) onDone();
+            }
+        };
+        for (;;) {
+            LockstepLane in[kLockstepLanes];
+            int busy = 0;
+            for (int j = 0; j < kLockstepLanes; ++j)
+                for (;;) {
+                    if (!lane[j]) {
+                        const size_t k = next++;
+                        if (k >= jobs.size()) break;
+                        jobOf[j] = k;
+                        lane[j] = std::make_unique<Training>(voxels[jobs[k].voxel], *samples[jobs[k].voxel], settings, jobs[k].decay,
+                                                             jobs[k].restart);
+                    }
+                    Training& t = *lane[j];
+                    if (t.takeFresh()) nets.setLane(j, t.freshParams());
+                    if (t.done()) {
+                        retire(j);
+                        continue;
+                    }
+                    if (t.wantsStep()) {
+                        t.fill(in[j]);
+                        ++busy;
+                        break;
+                    }
+                    nets.getLane(j, params);  // an epoch without samples ends at once
+                    t.endEpoch(params);
+                }
+            if (busy == 0) break;
+            const Clock::time_point t0 = Clock::now();
+            lockstepTrainStep(nets, in, settings.loss, ws);
+            const double share = secondsSince(t0) / double(busy);
+            for (int j = 0; j < kLockstepLanes; ++j)
+                if (in[j].count > 0 && lane[j]->stepped(in[j].count, share)) {
+                    nets.getLane(j, params);
+                    lane[j]->endEpoch(params);
+                }
+        }
+    };
+    const size_t groups = std::clamp<size_t>((jobs.size() + kLockstepLanes - 1) / kLockstepLanes, 1,
+                                             size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
+    tbb::parallel_for(size_t(0), groups, [&](size_t) { runGroup(); });
+    return out;
+}
+
+VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
+    return trainVoxels({voxel}, {&entries}, settings).front();
+}
+
+}  // namespace nrad
