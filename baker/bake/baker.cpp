@@ -232,7 +232,8 @@ eval::Partition cellPartition(const BakeCells& cells, const AdaptivePartition& a
 // sample order): the grid's voxels, split at walls, or with a budget the leaves of the adaptive tree,
 // refined on these very samples (into result.partition).
 BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const VoxelGrid& grid,
-                         const std::vector<TrainingSample>& samples, const format::Topology& topology, BakeResult& result) {
+                         const std::vector<TrainingSample>& samples, const format::Topology& topology, const BakeProgress& progress,
+                         BakeResult& result) {
     BakeCells cells;
     cells.band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
     cells.budgeted = settings.partition.budgetBytes > 0;
@@ -254,7 +255,8 @@ BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const
         cells.lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         cells.reserve = metadataReserve(scene, settings, result);
         result.partition = refinePartition(cells.lattice, samples, learned, topology, settings.partition, cells.reserve,
-                                           settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer());
+                                           settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer(),
+                                           progress.partition);
     }
     if (cells.adaptive) {
         const AdaptivePartition& ap = result.partition;
@@ -470,7 +472,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
 
     const format::Topology topology = bakeTopology(settings);
     auto tPartition = std::chrono::steady_clock::now();
-    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, result);
+    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, progress, result);
     result.timings.partition = since(tPartition);
 
     auto t2 = std::chrono::steady_clock::now();
@@ -510,6 +512,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"demodulated", t.demodulate},
                  {"blend_band", settings.blendBand},
                  {"weight_decays", t.weightDecays},
+                 {"race_epochs", t.weightDecays.size() > 1 ? t.raceEpochs : 0},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
     if (settings.training == TrainingMethod::Integral) {  // only then, so that Monte Carlo assets keep their bytes

@@ -100,6 +100,8 @@ struct BakeProgress {
     std::function<void(double)> training;
     // Integral training: called after every round (0: the Monte Carlo start) with the asset as it stands.
     std::function<void(uint32_t generation, const BakeResult& soFar)> generation;
+    // A budget's partition (refinePartition): the fraction of the networks it pays for made so far.
+    std::function<void(double)> partition;
 };
 
 // The settings' automatic values, where SampleSettings' points or paths are 0 (what `nrad bake` and every

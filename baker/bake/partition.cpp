@@ -2,6 +2,7 @@
 #include "baker/bake/partition.h"
 
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <queue>
@@ -127,7 +128,7 @@ public:
         for (size_t i = 0; i < n_; ++i) cells_[0].samples[i] = uint32_t(i);
     }
 
-    AdaptivePartition run(const LeafScorer& scorer) {
+    AdaptivePartition run(const LeafScorer& scorer, const std::function<void(double)>& progress) {
         networks_ = n_ > 0 ? 1 : 0;
         if (bytesOf(std::max<uint64_t>(networks_, 1), 1) > settings_.budgetBytes)
             throw std::runtime_error("--budget " + std::to_string(settings_.budgetBytes) + " bytes is below the smallest asset (one network: " +
@@ -144,14 +145,22 @@ public:
         } else {
             push(0);
         }
+        // Progress: the networks made of those the budget pays for, reported at every whole percent.
+        int reported = -1;
+        auto report = [&] {
+            const int percent = affordable > 0 ? int(std::min<uint64_t>(100, 100 * networks_ / affordable)) : 100;
+            if (progress && percent != reported) progress(double(reported = percent) / 100.0);
+        };
         while (!queue_.empty() && networks_ < phaseOne) {
             const Candidate best = queue_.top();
             queue_.pop();
             if (!split(best.cell)) continue;
             push(uint32_t(cells_.size() - 2));
             push(uint32_t(cells_.size() - 1));
+            if (settings_.budgetBytes != UINT64_MAX) report();
         }
-        if (scorer) refineByScore(scorer);
+        if (scorer) refineByScore(scorer, report);
+        if (progress && settings_.budgetBytes != UINT64_MAX) progress(1.0);
         // Emit in the format's order: depth first, lower child first, children adjacent, leaves numbered.
         out_.tree.assign(1, {});
         out_.leafOfSample.assign(n_, 0);
@@ -340,7 +349,7 @@ private:
 
     // 2. By the measured error: every leaf's network trained briefly, its held-out error x samples the
     //    score; the worst quarter (per byte) split each round, at their best planes, until the budget is spent.
-    void refineByScore(const LeafScorer& scorer) {
+    void refineByScore(const LeafScorer& scorer, const std::function<void()>& report) {
         std::vector<double> score(cells_.size(), -1.0);
         for (int round = 0; round < 64; ++round) {
             std::vector<uint32_t> open, unscored;
@@ -363,6 +372,7 @@ private:
             for (size_t i = 0; i < order.size() && made < take; ++i)
                 if (split(order[i].second)) ++made;
             if (made == 0) break;  // nothing fits any more
+            report();
         }
     }
 
@@ -390,8 +400,9 @@ private:
 
 AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
                                   const std::vector<float>& learned, const format::Topology& topology,
-                                  const PartitionSettings& settings, const MetadataReserve& reserve, const LeafScorer& scorer) {
-    return Refiner(lattice, samples, learned, topology, settings, reserve).run(scorer);
+                                  const PartitionSettings& settings, const MetadataReserve& reserve, const LeafScorer& scorer,
+                                  const std::function<void(double)>& progress) {
+    return Refiner(lattice, samples, learned, topology, settings, reserve).run(scorer, progress);
 }
 
 uint32_t wallRefine(const format::Grid& grid) {

@@ -79,7 +79,7 @@ using LeafScorer = std::function<std::vector<double>(const std::vector<uint32_t>
 AdaptivePartition refinePartition(const format::Grid& lattice, const std::vector<TrainingSample>& samples,
                                   const std::vector<float>& learned, const format::Topology& topology,
                                   const PartitionSettings& settings, const MetadataReserve& reserve,
-                                  const LeafScorer& scorer = {});
+                                  const LeafScorer& scorer = {}, const std::function<void(double)>& progress = {});
 
 // Walls inside the cells of a uniform grid (issue 38): where one voxel holds both sides of a thin wall (a lit
 // room's floor beside a dark room's, 2 cm apart), its network must learn a step in position it cannot

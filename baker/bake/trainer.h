@@ -44,6 +44,10 @@ struct TrainSettings {
     // Initialisations per weight decay: each trains from its own random start and the lowest held-out error
     // wins (1: one, the first, as always).
     int restarts = 1;
+    // With more than one candidate (weight decays x restarts): after this many epochs the candidate with the lowest
+    // held-out error so far wins and trains on alone; the others stop there (0: every candidate trains to its end
+    // and the lowest final held-out error wins).
+    int raceEpochs = 0;
     // A network whose targets are all grey outputs the mean of its three channels (its output rows averaged after
     // training): no colour where its data has none. Each channel's own noise otherwise tints it (a grey room
     // came out pink, green and purple: docs/results.md).

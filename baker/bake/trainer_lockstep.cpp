@@ -10,6 +10,9 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <utility>
+#include <stdexcept>
 
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -86,11 +89,28 @@ public:
     }
 
     bool done() const { return done_; }
+    // Paused at the race's epoch (TrainSettings::raceEpochs), its lane's state saved in laneState(), until resume().
+    bool parked() const { return parked_; }
+    void resume() {
+        parked_ = false;
+        resumed_ = true;
+    }
+    // Whether the lane must take the saved state back (a resumed training); once.
+    bool takeResumed() { return std::exchange(resumed_, false); }
+    struct LaneState {
+        std::vector<float> params, m, v;
+    };
+    LaneState& laneState() { return laneState_; }
+    // What the race compares: the lowest held-out error of the epochs' checks so far (a fallback: none).
+    double raceError() const { return done_ && result_.fallback ? std::numeric_limits<double>::infinity() : best_; }
+    // Enter the race: pause after `epochs` epochs of the first attempt.
+    void raceAt(int epochs) { raceAt_ = epochs; }
+    double seconds() const { return done_ ? result_.seconds : seconds_; }
     // Whether the lane's parameters must be replaced by freshParams() (a new attempt began); once per attempt.
     bool takeFresh() { return std::exchange(fresh_, false); }
     const std::vector<float>& freshParams() const { return mlp_.parameters(); }
     // Whether the next thing to do is a step (else an epoch without samples ends at once: endEpoch).
-    bool wantsStep() const { return !done_ && at_ < perm_.size(); }
+    bool wantsStep() const { return !done_ && !parked_ && at_ < perm_.size(); }
 
     // This job's next mini-batch, as its lane's input.
     void fill(LockstepLane& lane) {
@@ -126,6 +146,10 @@ public:
         }
         if (++epoch_ >= s_.epochs) return endAttempt(t0);
         beginEpoch();
+        if (epoch_ == raceAt_) {
+            parked_ = true;
+            raceAt_ = 0;
+        }
         seconds_ += secondsSince(t0);
     }
     VoxelTrainResult takeResult() { return std::move(result_); }
@@ -188,6 +212,7 @@ private:
             return finish();
         }
         result_.events.push_back("attempt " + std::to_string(result_.attempts) + ": " + failure + ", re-initialised");
+        raceAt_ = 0;  // the race is run once, on the first attempt's epochs
         if (result_.attempts < s_.maxAttempts) return startAttempt();
         finish();
     }
@@ -225,12 +250,13 @@ private:
     std::vector<float> packed_, heldOutInputs_, heldOutTerms_, bestParams_, kept_;
     std::vector<size_t> perm_;
     std::vector<TrainCurvePoint> curve_;
+    LaneState laneState_;
     SplitMix64 order_{0};
     double weightSum_ = 0.0, heldOutWeight_ = 0.0, best_ = 0.0, beta1Power_ = 1.0, beta2Power_ = 1.0, seconds_ = 0.0;
     float invScale_ = 1.0f, rate_ = 0.0f;
     size_t batch_ = 1, at_ = 0;
-    int epoch_ = 0, sinceBest_ = 0;
-    bool diverged_ = false, fresh_ = false, done_ = false;
+    int epoch_ = 0, sinceBest_ = 0, raceAt_ = 0;
+    bool diverged_ = false, fresh_ = false, done_ = false, parked_ = false, resumed_ = false;
 };
 
 // The candidates of one voxel (its trainings, in weight-decay then restart order) made into its result: the lowest
@@ -265,63 +291,140 @@ VoxelTrainResult chooseCandidate(std::vector<VoxelTrainResult>& candidates, cons
 
 std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
                                           const TrainSettings& settings, const std::function<void()>& onDone) {
+    if (settings.shape.inputs != kPackedInputs || settings.shape.outputs != 3)
+        throw std::invalid_argument("trainVoxels: a voxel network has 9 inputs and 3 outputs");
     const std::vector<float> none = {0.0f};
     const std::vector<float>& decays = settings.weightDecays.empty() ? none : settings.weightDecays;
     const size_t perVoxel = decays.size() * size_t(std::max(1, settings.restarts));
-    // The jobs, the voxels with the most samples first (the longest trainings start first, the tail is short).
+    const bool racing = perVoxel > 1 && settings.raceEpochs > 0;
+    // The jobs, the voxels with the most samples first (the longest trainings start first, the tail is short); a
+    // voxel's candidates consecutive, in weight-decay then restart order.
     std::vector<size_t> order(voxels.size());
     for (size_t k = 0; k < order.size(); ++k) order[k] = k;
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return samples[a]->size() > samples[b]->size(); });
     struct Job {
         size_t voxel;  // index into voxels
+        size_t slot;  // candidate
         float decay;
         int restart;
     };
     std::vector<Job> jobs;
     for (size_t k : order)
-        for (float decay : decays)
-            for (int restart = 0; restart < std::max(1, settings.restarts); ++restart) jobs.push_back({k, decay, restart});
+        for (size_t d = 0; d < decays.size(); ++d)
+            for (int restart = 0; restart < std::max(1, settings.restarts); ++restart)
+                jobs.push_back({k, d * size_t(std::max(1, settings.restarts)) + size_t(restart), decays[d], restart});
 
-    std::vector<std::vector<VoxelTrainResult>> candidates(voxels.size(), std::vector<VoxelTrainResult>(perVoxel));
-    std::vector<std::atomic<size_t>> remaining(voxels.size());
-    for (std::atomic<size_t>& r : remaining) r = perVoxel;
+    // A training in a lane, or waiting for one.
+    struct Held {
+        std::unique_ptr<Training> training;
+        size_t voxel = 0, slot = 0;
+    };
+    // Each voxel's candidates as they end or pause at the race, and what was decided.
+    struct Candidates {
+        std::mutex mutex;
+        size_t pending = 0;
+        std::vector<std::unique_ptr<Training>> held;
+        bool decided = false;
+        double losersSeconds = 0.0;
+    };
+    std::vector<Candidates> candidates(voxels.size());
+    for (Candidates& c : candidates) {
+        c.pending = perVoxel;
+        c.held.resize(perVoxel);
+    }
     std::vector<VoxelTrainResult> out(voxels.size());
     std::atomic<size_t> next{0};
+    std::mutex readyMutex;
+    std::vector<Held> ready;  // race winners to resume
 
-    // One group of lanes: takes jobs until none is left, stepping all its busy lanes together.
+    auto finalize = [&](size_t voxel, std::vector<VoxelTrainResult> results, double extraSeconds) {
+        out[voxel] = chooseCandidate(results, *samples[voxel], settings);
+        out[voxel].seconds += extraSeconds;
+        if (onDone) onDone();
+    };
+    // A training that ended or paused at the race: the voxel's result once every candidate has, or the race's winner
+    // back to the lanes.
+    auto settle = [&](Held h) {
+        Candidates& c = candidates[h.voxel];
+        std::unique_lock<std::mutex> lock(c.mutex);
+        if (c.decided) {  // the race's winner, ended
+            const double extra = c.losersSeconds;
+            lock.unlock();
+            return finalize(h.voxel, {h.training->takeResult()}, extra);
+        }
+        c.held[h.slot] = std::move(h.training);
+        if (--c.pending > 0) return;
+        std::vector<std::unique_ptr<Training>> held = std::move(c.held);
+        if (std::none_of(held.begin(), held.end(), [](const std::unique_ptr<Training>& t) { return t->parked(); })) {
+            lock.unlock();
+            std::vector<VoxelTrainResult> results;
+            for (std::unique_ptr<Training>& t : held) results.push_back(t->takeResult());
+            return finalize(h.voxel, std::move(results), 0.0);
+        }
+        // The race: the lowest held-out error so far wins (the first on a tie); the others stop here.
+        size_t winner = 0;
+        for (size_t k = 1; k < held.size(); ++k)
+            if (held[k]->raceError() < held[winner]->raceError()) winner = k;
+        for (size_t k = 0; k < held.size(); ++k)
+            if (k != winner) c.losersSeconds += held[k]->seconds();
+        c.decided = true;
+        const double extra = c.losersSeconds;
+        lock.unlock();
+        if (held[winner]->done()) return finalize(h.voxel, {held[winner]->takeResult()}, extra);
+        held[winner]->resume();
+        std::lock_guard<std::mutex> readyLock(readyMutex);
+        ready.push_back({std::move(held[winner]), h.voxel, winner});
+    };
+
+    // One group of lanes: takes trainings (resumed race winners first) until none is left, stepping all its busy
+    // lanes together.
     auto runGroup = [&]() {
         LockstepNetworks nets(settings.shape);
         LockstepWorkspace ws;
-        std::unique_ptr<Training> lane[kLockstepLanes];
-        size_t jobOf[kLockstepLanes] = {};
+        Held lane[kLockstepLanes];
         std::vector<float> params;
-        auto retire = [&](int j) {
-            const Job& job = jobs[jobOf[j]];
-            const size_t slot = size_t(&job - &jobs[0]) % perVoxel;  // jobs of a voxel are consecutive, in candidate order
-            candidates[job.voxel][slot] = lane[j]->takeResult();
-            lane[j].reset();
-            if (--remaining[job.voxel] == 0) {
-                out[job.voxel] = chooseCandidate(candidates[job.voxel], *samples[job.voxel], settings);
-                candidates[job.voxel].clear();
-                if (onDone) onDone();
+        auto take = [&](Held& h) {
+            {
+                std::lock_guard<std::mutex> readyLock(readyMutex);
+                if (!ready.empty()) {
+                    h = std::move(ready.back());
+                    ready.pop_back();
+                    return true;
+                }
             }
+            const size_t k = next++;
+            if (k >= jobs.size()) return false;
+            const Job& job = jobs[k];
+            h.voxel = job.voxel;
+            h.slot = job.slot;
+            h.training = std::make_unique<Training>(voxels[job.voxel], *samples[job.voxel], settings, job.decay, job.restart);
+            if (racing) h.training->raceAt(settings.raceEpochs);
+            return true;
+        };
+        // After an epoch's end: a training paused at the race leaves its lane with the lane's state.
+        auto park = [&](int j) {
+            Training& t = *lane[j].training;
+            Training::LaneState& st = t.laneState();
+            nets.getLaneState(j, st.params, st.m, st.v);
+            settle(std::move(lane[j]));
+            lane[j] = Held{};
         };
         for (;;) {
             LockstepLane in[kLockstepLanes];
             int busy = 0;
             for (int j = 0; j < kLockstepLanes; ++j)
                 for (;;) {
-                    if (!lane[j]) {
-                        const size_t k = next++;
-                        if (k >= jobs.size()) break;
-                        jobOf[j] = k;
-                        lane[j] = std::make_unique<Training>(voxels[jobs[k].voxel], *samples[jobs[k].voxel], settings, jobs[k].decay,
-                                                             jobs[k].restart);
-                    }
-                    Training& t = *lane[j];
+                    if (!lane[j].training && !take(lane[j])) break;
+                    Training& t = *lane[j].training;
                     if (t.takeFresh()) nets.setLane(j, t.freshParams());
+                    if (t.takeResumed()) nets.setLaneState(j, t.laneState().params, t.laneState().m, t.laneState().v);
                     if (t.done()) {
-                        retire(j);
+                        settle(std::move(lane[j]));
+                        lane[j] = Held{};
+                        continue;
+                    }
+                    if (t.parked()) {
+                        park(j);
                         continue;
                     }
                     if (t.wantsStep()) {
@@ -337,9 +440,9 @@ std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, c
             lockstepTrainStep(nets, in, settings.loss, ws);
             const double share = secondsSince(t0) / double(busy);
             for (int j = 0; j < kLockstepLanes; ++j)
-                if (in[j].count > 0 && lane[j]->stepped(in[j].count, share)) {
+                if (in[j].count > 0 && lane[j].training->stepped(in[j].count, share)) {
                     nets.getLane(j, params);
-                    lane[j]->endEpoch(params);
+                    lane[j].training->endEpoch(params);
                 }
         }
     };

@@ -80,7 +80,7 @@ struct BakeOptions {
     uint32_t minSamples = defaults().samples.minSamplesPerVoxel, noisyPaths = defaults().samples.extraPathsFactor;
     std::string nee = neeModeName(defaults().nee.mode);
     int maxDepth = defaults().samples.maxDepth, epochs = defaults().train.epochs, batch = defaults().train.batchSize;
-    int patience = defaults().train.patience;
+    int patience = defaults().train.patience, raceEpochs = defaults().train.raceEpochs;
     float learningRate = defaults().train.learningRate, blendBand = defaults().blendBand;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
@@ -215,6 +215,9 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--weight-decay", &o.weightDecay,
           "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training samples; "
           "0 = unregularised");
+    t.add("--race-epochs", &o.raceEpochs,
+          "With several --weight-decay values: after this many epochs the one with the lowest held-out error so far trains "
+          "on alone; 0 = each trains to its end");
     t.add("--blend-band", &o.blendBand,
           "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; 0 = none");
     t.add("--budget", &o.budget,
@@ -263,8 +266,8 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     else
         return usage("--encoding " + o.encoding + ": expected fp16 or fp32");
     if (o.noisyPaths < 1 || o.noisyPaths > 64) return usage("--noisy-paths: expected 1 (off) to 64");
-    if (o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f))
-        return usage("--epochs, --batch-size, --patience and --learning-rate must be positive, --max-depth >= 0");
+    if (o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f) || o.raceEpochs < 0)
+        return usage("--epochs, --batch-size, --patience and --learning-rate must be positive, --max-depth and --race-epochs >= 0");
     if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
         return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
     s.blendBand = o.blendBand;
@@ -323,6 +326,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.train.epochs = o.epochs;
     s.train.batchSize = o.batch;
     s.train.patience = o.patience;
+    s.train.raceEpochs = o.raceEpochs;
     s.train.learningRate = o.learningRate;
     s.train.seed = o.seed;
     s.metadata = !o.noMetadata;
@@ -367,9 +371,10 @@ int loadLitScene(const BakeOptions& o, CLI::App* cmd, const std::set<std::string
 // Bakes, with progress on stderr, and writes the asset (its bytes into `bytes`).
 int bakeAndWrite(const BakeOptions& o, const Scene& scene, const BakeSettings& s, BakeResult& r, std::vector<uint8_t>& bytes,
                  double& writeSeconds) {
-    ProgressBar sampling("sampling", !o.quiet), training("training", !o.quiet);
+    ProgressBar sampling("sampling", !o.quiet), partition("partition", !o.quiet), training("training", !o.quiet);
     try {
-        BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {}};
+        BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {},
+                              [&](double f) { partition.update(f); }};
         if (!o.saveGenerations.empty())
             progress.generation = [&](uint32_t g, const BakeResult& soFar) {
                 writeBytesAtomically(o.saveGenerations + "-g" + std::to_string(g) + ".nrad", format::encode(soFar.asset));

@@ -36,6 +36,25 @@ void LockstepNetworks::getLane(int lane, std::vector<float>& p) const {
     for (size_t q = 0; q < p.size(); ++q) p[q] = params[q * kLockstepLanes + size_t(lane)];
 }
 
+void LockstepNetworks::getLaneState(int lane, std::vector<float>& p, std::vector<float>& mOut, std::vector<float>& vOut) const {
+    getLane(lane, p);
+    mOut.resize(p.size());
+    vOut.resize(p.size());
+    for (size_t q = 0; q < p.size(); ++q) {
+        mOut[q] = m[q * kLockstepLanes + size_t(lane)];
+        vOut[q] = v[q * kLockstepLanes + size_t(lane)];
+    }
+}
+
+void LockstepNetworks::setLaneState(int lane, const std::vector<float>& p, const std::vector<float>& mIn, const std::vector<float>& vIn) {
+    for (size_t q = 0; q < p.size(); ++q) {
+        const size_t at = q * kLockstepLanes + size_t(lane);
+        params[at] = p[q];
+        m[at] = mIn[q];
+        v[at] = vIn[q];
+    }
+}
+
 namespace {
 #if defined(__x86_64__)
 bool cpuHasAvx2Fma() {

@@ -34,6 +34,9 @@ struct LockstepNetworks {
     // Lane j's parameters in or out, in the Mlp layout; setLane also zeroes its Adam moments.
     void setLane(int lane, const std::vector<float>& p);
     void getLane(int lane, std::vector<float>& p) const;
+    // Lane j's parameters and Adam moments out and back in (a training paused in one lane and resumed in another).
+    void getLaneState(int lane, std::vector<float>& p, std::vector<float>& mOut, std::vector<float>& vOut) const;
+    void setLaneState(int lane, const std::vector<float>& p, const std::vector<float>& mIn, const std::vector<float>& vIn);
 };
 
 // One step's inputs per lane: count samples (0: the lane rests, nothing of it changes), rows[k] the packed sample

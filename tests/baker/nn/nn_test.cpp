@@ -337,25 +337,65 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
         ids.push_back(uint32_t(v));
         sets.push_back(&entries[v]);
     }
-    std::vector<VoxelTrainResult> alone;
-    for (size_t v = 0; v < entries.size(); ++v) alone.push_back(trainVoxel(uint32_t(v), entries[v], settings));
-    for (int threads : {1, 2}) {
-        std::vector<VoxelTrainResult> together;
-        size_t done = 0;
-        tbb::task_arena(threads).execute([&] { together = trainVoxels(ids, sets, settings, [&] { ++done; }); });
-        ASSERT_EQ(together.size(), alone.size());
-        EXPECT_EQ(done, alone.size()) << threads << " threads";
-        for (size_t v = 0; v < alone.size(); ++v) {
-            EXPECT_EQ(together[v].voxel, uint32_t(v));
-            EXPECT_EQ(together[v].params, alone[v].params) << "voxel " << v << ", " << threads << " threads";
-            EXPECT_EQ(together[v].heldOutRelMse, alone[v].heldOutRelMse);
-            EXPECT_EQ(together[v].epochs, alone[v].epochs);
-            EXPECT_EQ(together[v].weightDecay, alone[v].weightDecay);
+    // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free).
+    for (int race : {0, 10}) {
+        settings.raceEpochs = race;
+        std::vector<VoxelTrainResult> alone;
+        for (size_t v = 0; v < entries.size(); ++v) alone.push_back(trainVoxel(uint32_t(v), entries[v], settings));
+        for (int threads : {1, 2}) {
+            std::vector<VoxelTrainResult> together;
+            size_t done = 0;
+            tbb::task_arena(threads).execute([&] { together = trainVoxels(ids, sets, settings, [&] { ++done; }); });
+            ASSERT_EQ(together.size(), alone.size());
+            EXPECT_EQ(done, alone.size()) << threads << " threads";
+            for (size_t v = 0; v < alone.size(); ++v) {
+                EXPECT_EQ(together[v].voxel, uint32_t(v));
+                EXPECT_EQ(together[v].params, alone[v].params) << "voxel " << v << ", " << threads << " threads, race " << race;
+                EXPECT_EQ(together[v].heldOutRelMse, alone[v].heldOutRelMse);
+                EXPECT_EQ(together[v].epochs, alone[v].epochs);
+                EXPECT_EQ(together[v].weightDecay, alone[v].weightDecay);
+            }
         }
+        // The trainings end at different steps: some stop early, some run every epoch.
+        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs < 60; }));
+        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs == 60; }));
     }
-    // The trainings end at different steps: some stop early, some run every epoch.
-    EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs < 60; }));
-    EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs == 60; }));
+}
+
+// The race (TrainSettings::raceEpochs): the candidate with the lowest held-out error in its first 20 epochs (its
+// curve, recorded every epoch) trains on alone and ends exactly as it does trained alone to its end.
+TEST(Trainer, RaceKeepsTheCandidateAheadAtItsEpochTrainedToItsEnd) {
+    const VoxelGrid grid = unitVoxel();
+    const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 600);
+    const std::vector<const TrainingSample*> ptrs = pointersTo(samples);
+    TrainSettings settings;
+    settings.epochs = 80;
+    settings.patience = 80;
+    settings.curveEvery = 1;
+    settings.weightDecays = {0.0f, 40.0f, 400.0f};
+    std::vector<VoxelTrainResult> alone;
+    size_t ahead = 0;
+    std::vector<double> atRace;
+    for (float decay : settings.weightDecays) {
+        TrainSettings one = settings;
+        one.weightDecays = {decay};
+        alone.push_back(trainVoxel(grid, 0, ptrs, one));
+        double best = 1e30;
+        for (const TrainCurvePoint& p : alone.back().curve)
+            if (p.epoch < 20) best = std::min(best, p.heldOutRelMse);
+        atRace.push_back(best);
+        if (best < atRace[ahead]) ahead = atRace.size() - 1;
+    }
+    settings.raceEpochs = 20;
+    const VoxelTrainResult raced = trainVoxel(grid, 0, ptrs, settings);
+    EXPECT_EQ(raced.params, alone[ahead].params);
+    EXPECT_EQ(raced.weightDecay, settings.weightDecays[ahead]);
+    EXPECT_EQ(raced.epochs, alone[ahead].epochs);
+    // Without the race the lowest final error wins, which is never above the race's winner's.
+    settings.raceEpochs = 0;
+    EXPECT_LE(trainVoxel(grid, 0, ptrs, settings).heldOutRelMse, raced.heldOutRelMse);
+    // The decays lead by different amounts at epoch 20: the race compared something.
+    EXPECT_NE(atRace[0], atRace[2]);
 }
 
 // Grey where grey (TrainSettings::greyWhereGrey): trained on grey targets, a network's three outputs are equal
