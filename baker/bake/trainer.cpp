@@ -1,4 +1,6 @@
-// Per-voxel training with Adam, early stopping on a held-out split, and failure recovery.
+// The training pieces every bake shares (samples per network, a network's prepared samples, its error as shaded, the
+// checks after training) and the rounds of training within the integral equation (continueVoxel); the Monte Carlo
+// training of the voxels runs in lockstep lanes (trainer_lockstep.cpp).
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_parts.h"
 

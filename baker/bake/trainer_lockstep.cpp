@@ -287,39 +287,50 @@ VoxelTrainResult chooseCandidate(std::vector<VoxelTrainResult>& candidates, cons
     return best;
 }
 
-}  // namespace
+// The trainings of one trainVoxels call: the jobs (the voxels with the most samples first, so that the longest
+// trainings start first and the tail is short; a voxel's candidates consecutive, in weight-decay then restart
+// order), each voxel's candidates as they end or pause at the race, the race's winners waiting for a lane, and
+// the results. Groups of lanes (runGroup, one per thread) take trainings until none is left.
+class LaneScheduler {
+public:
+    LaneScheduler(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
+                  const TrainSettings& settings, const std::function<void()>& onDone)
+        : voxels_(voxels), samples_(samples), settings_(settings), onDone_(onDone), candidates_(voxels.size()), out_(voxels.size()) {
+        const std::vector<float> none = {0.0f};
+        const std::vector<float>& decays = settings.weightDecays.empty() ? none : settings.weightDecays;
+        const size_t restarts = size_t(std::max(1, settings.restarts)), perVoxel = decays.size() * restarts;
+        racing_ = perVoxel > 1 && settings.raceEpochs > 0;
+        std::vector<size_t> order(voxels.size());
+        for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+        std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return samples[a]->size() > samples[b]->size(); });
+        for (size_t k : order)
+            for (size_t d = 0; d < decays.size(); ++d)
+                for (size_t restart = 0; restart < restarts; ++restart) jobs_.push_back({k, d * restarts + restart, decays[d], int(restart)});
+        for (Candidates& c : candidates_) {
+            c.pending = perVoxel;
+            c.held.resize(perVoxel);
+        }
+    }
 
-std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
-                                          const TrainSettings& settings, const std::function<void()>& onDone) {
-    if (settings.shape.inputs != kPackedInputs || settings.shape.outputs != 3)
-        throw std::invalid_argument("trainVoxels: a voxel network has 9 inputs and 3 outputs");
-    const std::vector<float> none = {0.0f};
-    const std::vector<float>& decays = settings.weightDecays.empty() ? none : settings.weightDecays;
-    const size_t perVoxel = decays.size() * size_t(std::max(1, settings.restarts));
-    const bool racing = perVoxel > 1 && settings.raceEpochs > 0;
-    // The jobs, the voxels with the most samples first (the longest trainings start first, the tail is short); a
-    // voxel's candidates consecutive, in weight-decay then restart order.
-    std::vector<size_t> order(voxels.size());
-    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return samples[a]->size() > samples[b]->size(); });
+    std::vector<VoxelTrainResult> run() {
+        const size_t groups = std::clamp<size_t>((jobs_.size() + kLockstepLanes - 1) / kLockstepLanes, 1,
+                                                 size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
+        tbb::parallel_for(size_t(0), groups, [&](size_t) { runGroup(); });
+        return std::move(out_);
+    }
+
+private:
     struct Job {
-        size_t voxel;  // index into voxels
+        size_t voxel;  // index into voxels_
         size_t slot;  // candidate
         float decay;
         int restart;
     };
-    std::vector<Job> jobs;
-    for (size_t k : order)
-        for (size_t d = 0; d < decays.size(); ++d)
-            for (int restart = 0; restart < std::max(1, settings.restarts); ++restart)
-                jobs.push_back({k, d * size_t(std::max(1, settings.restarts)) + size_t(restart), decays[d], restart});
-
     // A training in a lane, or waiting for one.
     struct Held {
         std::unique_ptr<Training> training;
         size_t voxel = 0, slot = 0;
     };
-    // Each voxel's candidates as they end or pause at the race, and what was decided.
     struct Candidates {
         std::mutex mutex;
         size_t pending = 0;
@@ -327,25 +338,37 @@ std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, c
         bool decided = false;
         double losersSeconds = 0.0;
     };
-    std::vector<Candidates> candidates(voxels.size());
-    for (Candidates& c : candidates) {
-        c.pending = perVoxel;
-        c.held.resize(perVoxel);
-    }
-    std::vector<VoxelTrainResult> out(voxels.size());
-    std::atomic<size_t> next{0};
-    std::mutex readyMutex;
-    std::vector<Held> ready;  // race winners to resume
 
-    auto finalize = [&](size_t voxel, std::vector<VoxelTrainResult> results, double extraSeconds) {
-        out[voxel] = chooseCandidate(results, *samples[voxel], settings);
-        out[voxel].seconds += extraSeconds;
-        if (onDone) onDone();
-    };
-    // A training that ended or paused at the race: the voxel's result once every candidate has, or the race's winner
-    // back to the lanes.
-    auto settle = [&](Held h) {
-        Candidates& c = candidates[h.voxel];
+    // The next training for a lane: a race's winner to resume, else the next job.
+    bool take(Held& h) {
+        {
+            std::lock_guard<std::mutex> lock(readyMutex_);
+            if (!ready_.empty()) {
+                h = std::move(ready_.back());
+                ready_.pop_back();
+                return true;
+            }
+        }
+        const size_t k = next_++;
+        if (k >= jobs_.size()) return false;
+        const Job& job = jobs_[k];
+        h.voxel = job.voxel;
+        h.slot = job.slot;
+        h.training = std::make_unique<Training>(voxels_[job.voxel], *samples_[job.voxel], settings_, job.decay, job.restart);
+        if (racing_) h.training->raceAt(settings_.raceEpochs);
+        return true;
+    }
+
+    void finalize(size_t voxel, std::vector<VoxelTrainResult> results, double extraSeconds) {
+        out_[voxel] = chooseCandidate(results, *samples_[voxel], settings_);
+        out_[voxel].seconds += extraSeconds;
+        if (onDone_) onDone_();
+    }
+
+    // A training that ended or paused at the race: the voxel's result once every candidate has, or the race's
+    // winner back to the lanes.
+    void settle(Held h) {
+        Candidates& c = candidates_[h.voxel];
         std::unique_lock<std::mutex> lock(c.mutex);
         if (c.decided) {  // the race's winner, ended
             const double extra = c.losersSeconds;
@@ -372,72 +395,23 @@ std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, c
         lock.unlock();
         if (held[winner]->done()) return finalize(h.voxel, {held[winner]->takeResult()}, extra);
         held[winner]->resume();
-        std::lock_guard<std::mutex> readyLock(readyMutex);
-        ready.push_back({std::move(held[winner]), h.voxel, winner});
-    };
+        std::lock_guard<std::mutex> readyLock(readyMutex_);
+        ready_.push_back({std::move(held[winner]), h.voxel, winner});
+    }
 
-    // One group of lanes: takes trainings (resumed race winners first) until none is left, stepping all its busy
-    // lanes together.
-    auto runGroup = [&]() {
-        LockstepNetworks nets(settings.shape);
+    // One group of lanes: takes trainings until none is left, stepping all its busy lanes together.
+    void runGroup() {
+        LockstepNetworks nets(settings_.shape);
         LockstepWorkspace ws;
         Held lane[kLockstepLanes];
         std::vector<float> params;
-        auto take = [&](Held& h) {
-            {
-                std::lock_guard<std::mutex> readyLock(readyMutex);
-                if (!ready.empty()) {
-                    h = std::move(ready.back());
-                    ready.pop_back();
-                    return true;
-                }
-            }
-            const size_t k = next++;
-            if (k >= jobs.size()) return false;
-            const Job& job = jobs[k];
-            h.voxel = job.voxel;
-            h.slot = job.slot;
-            h.training = std::make_unique<Training>(voxels[job.voxel], *samples[job.voxel], settings, job.decay, job.restart);
-            if (racing) h.training->raceAt(settings.raceEpochs);
-            return true;
-        };
-        // After an epoch's end: a training paused at the race leaves its lane with the lane's state.
-        auto park = [&](int j) {
-            Training& t = *lane[j].training;
-            Training::LaneState& st = t.laneState();
-            nets.getLaneState(j, st.params, st.m, st.v);
-            settle(std::move(lane[j]));
-            lane[j] = Held{};
-        };
         for (;;) {
             LockstepLane in[kLockstepLanes];
             int busy = 0;
-            for (int j = 0; j < kLockstepLanes; ++j)
-                for (;;) {
-                    if (!lane[j].training && !take(lane[j])) break;
-                    Training& t = *lane[j].training;
-                    if (t.takeFresh()) nets.setLane(j, t.freshParams());
-                    if (t.takeResumed()) nets.setLaneState(j, t.laneState().params, t.laneState().m, t.laneState().v);
-                    if (t.done()) {
-                        settle(std::move(lane[j]));
-                        lane[j] = Held{};
-                        continue;
-                    }
-                    if (t.parked()) {
-                        park(j);
-                        continue;
-                    }
-                    if (t.wantsStep()) {
-                        t.fill(in[j]);
-                        ++busy;
-                        break;
-                    }
-                    nets.getLane(j, params);  // an epoch without samples ends at once
-                    t.endEpoch(params);
-                }
+            for (int j = 0; j < kLockstepLanes; ++j) busy += fillLane(nets, lane[j], j, in[j], params) ? 1 : 0;
             if (busy == 0) break;
             const Clock::time_point t0 = Clock::now();
-            lockstepTrainStep(nets, in, settings.loss, ws);
+            lockstepTrainStep(nets, in, settings_.loss, ws);
             const double share = secondsSince(t0) / double(busy);
             for (int j = 0; j < kLockstepLanes; ++j)
                 if (in[j].count > 0 && lane[j].training->stepped(in[j].count, share)) {
@@ -445,11 +419,54 @@ std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, c
                     lane[j].training->endEpoch(params);
                 }
         }
-    };
-    const size_t groups = std::clamp<size_t>((jobs.size() + kLockstepLanes - 1) / kLockstepLanes, 1,
-                                             size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
-    tbb::parallel_for(size_t(0), groups, [&](size_t) { runGroup(); });
-    return out;
+    }
+
+    // Lane j's next mini-batch into `in`, after settling what ended or paused in it and taking the next training
+    // where it is free; false when the lane has nothing left to do.
+    bool fillLane(LockstepNetworks& nets, Held& h, int j, LockstepLane& in, std::vector<float>& params) {
+        for (;;) {
+            if (!h.training && !take(h)) return false;
+            Training& t = *h.training;
+            if (t.takeFresh()) nets.setLane(j, t.freshParams());
+            if (t.takeResumed()) nets.setLaneState(j, t.laneState().params, t.laneState().m, t.laneState().v);
+            if (t.parked()) {  // leaves its lane with the lane's state
+                Training::LaneState& st = t.laneState();
+                nets.getLaneState(j, st.params, st.m, st.v);
+            }
+            if (t.done() || t.parked()) {
+                settle(std::move(h));
+                h = Held{};
+                continue;
+            }
+            if (t.wantsStep()) {
+                t.fill(in);
+                return true;
+            }
+            nets.getLane(j, params);  // an epoch without samples ends at once
+            t.endEpoch(params);
+        }
+    }
+
+    const std::vector<uint32_t>& voxels_;
+    const std::vector<const std::vector<VoxelSample>*>& samples_;
+    const TrainSettings& settings_;
+    const std::function<void()>& onDone_;
+    bool racing_ = false;
+    std::vector<Job> jobs_;
+    std::vector<Candidates> candidates_;
+    std::vector<VoxelTrainResult> out_;
+    std::atomic<size_t> next_{0};
+    std::mutex readyMutex_;
+    std::vector<Held> ready_;  // race winners to resume
+};
+
+}  // namespace
+
+std::vector<VoxelTrainResult> trainVoxels(const std::vector<uint32_t>& voxels, const std::vector<const std::vector<VoxelSample>*>& samples,
+                                          const TrainSettings& settings, const std::function<void()>& onDone) {
+    if (settings.shape.inputs != kPackedInputs || settings.shape.outputs != 3)
+        throw std::invalid_argument("trainVoxels: a voxel network has 9 inputs and 3 outputs");
+    return LaneScheduler(voxels, samples, settings, onDone).run();
 }
 
 VoxelTrainResult trainVoxel(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {

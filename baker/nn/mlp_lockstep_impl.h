@@ -170,26 +170,23 @@ void prepare(const NetworkShape& s, LockstepWorkspace& ws) {
 
 }  // namespace
 
-void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws) {
-    const NetworkShape& s = nets.shape;
-    const size_t L = s.hidden.size() + 1;
-    prepare(s, ws);
-    int n = 0;
-    float countLanes[W8], invLanes[W8], rateLanes[W8], decayLanes[W8], epsLanes[W8];
-    for (int j = 0; j < W8; ++j) {
-        const LockstepLane& lane = lanes[j];
-        n = std::max(n, lane.count);
-        countLanes[j] = float(lane.count);
-        invLanes[j] = lane.count > 0 ? 1.0f / float(lane.count) : 0.0f;
-        const AdamRates r = adamRates(lane.learningRate, lane.c1, lane.c2);
-        rateLanes[j] = r.rate;
-        epsLanes[j] = r.epsilon;
-        decayLanes[j] = lane.weightDecay;
-    }
-    if (n == 0) return;
-    float* values = ws.values.data();
-    float* deltas = ws.deltas.data();
+// What the phases of a step share: the networks, the workspace, the most samples of any lane (n) and that
+// rounded up to four (n4), and the lanes' per-step values.
+struct Step {
+    LockstepNetworks& nets;
+    LockstepWorkspace& ws;
+    int n = 0, n4 = 0;
+    float countLanes[W8] = {}, invLanes[W8] = {}, rateLanes[W8] = {}, decayLanes[W8] = {}, epsLanes[W8] = {};
+};
 
+inline void gatherSamples(Step& st, const LockstepLane lanes[kLockstepLanes]) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
     // The samples, lane by lane (a resting lane, or one past its count, reads zeros: finite, and its gradient is
     // masked to zero below).
     static const float zeros[kPackedFloats] = {};
@@ -199,11 +196,19 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
         for (int j = 0; j < W8; ++j) rows[j] = k < lanes[j].count ? lanes[j].rows[k] : zeros;
         transposeRows(rows, values + ws.at[0] + size_t(k) * kPackedFloats * W8);
     }
+    for (int k = n; k < n4; ++k) transposeRows(zeroRows, values + ws.at[0] + size_t(k) * kPackedFloats * W8);
+}
 
+inline void forwardPass(Step& st) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
     // Forward: each unit's sum from its bias up in input order; ReLU on the hidden layers. Four samples at a time,
     // each weight loaded once for them (samples past n are the zero rows: finite, never in a gradient).
-    const int n4 = (n + 3) / 4 * 4;
-    for (int k = n; k < n4; ++k) transposeRows(zeroRows, values + ws.at[0] + size_t(k) * kPackedFloats * W8);
     for (int k0 = 0; k0 < n4; k0 += 4)
         for (size_t l = 0; l < L; ++l) {
             const int in = width(s, l), out = width(s, l + 1);
@@ -223,9 +228,18 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
                 for (int q = 0; q < 4; ++q) store(z + size_t(q) * zs + size_t(o) * W8, l + 1 == L ? acc[q] : whereAboveZero(acc[q], acc[q]));
             }
         }
+}
 
+inline void lossGradient(Step& st, LossKind loss) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
     // The loss's gradient at the outputs (loss.cpp's regressionGradient, lane by lane), zero past a lane's count.
-    const V8 count = load(countLanes);
+    const V8 count = load(st.countLanes);
     for (int k = 0; k < n4; ++k) {
         const float* row = values + ws.at[0] + size_t(k) * kPackedFloats * W8;
         const float* y = values + ws.at[L] + size_t(k) * 3 * W8;
@@ -244,7 +258,16 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
             store(dy + size_t(c) * W8, whereLess(kk, count, g));
         }
     }
+}
 
+inline void backpropagate(Step& st) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
     // Backpropagation: each hidden unit's delta its sum over the next layer's units in order, from zero, where the
     // unit is active; four samples at a time.
     for (int k0 = 0; k0 < n4; k0 += 4)
@@ -265,7 +288,16 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
                     store(back + size_t(q) * bs + size_t(i) * W8, whereAboveZero(load(a + size_t(q) * bs + size_t(i) * W8), acc[q]));
             }
         }
+}
 
+inline void sumGradient(Step& st) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
     // The gradient, summed over the samples in order.
     float* grad = ws.grad.data();
     for (size_t l = 0; l < L; ++l) {
@@ -284,11 +316,22 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
             store(gb + size_t(o) * W8, acc);
         }
     }
+}
 
+inline void adamStep(Step& st) {
+    [[maybe_unused]] LockstepNetworks& nets = st.nets;
+    [[maybe_unused]] const NetworkShape& s = nets.shape;
+    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
+    [[maybe_unused]] const int n = st.n, n4 = st.n4;
+    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
+    [[maybe_unused]] float* values = ws.values.data();
+    [[maybe_unused]] float* deltas = ws.deltas.data();
+    const float* grad = ws.grad.data();
     // The mean gradient, the L2 penalty (not on the output biases), Adam (the bias corrections folded into the
     // rate and epsilon, as Kingma and Ba's Sec. 2 arranges it: one square root and one division a parameter);
     // resting lanes keep everything.
-    const V8 inv = load(invLanes), rate = load(rateLanes), decay = load(decayLanes), epsT = load(epsLanes);
+    const V8 inv = load(st.invLanes), rate = load(st.rateLanes), decay = load(st.decayLanes), epsT = load(st.epsLanes);
+    const V8 count = load(st.countLanes);
     const V8 b1 = splat(kAdamBeta1), b2 = splat(kAdamBeta2);
     const V8 nb1 = splat(1.0f - kAdamBeta1), nb2 = splat(1.0f - kAdamBeta2);
     const size_t P = nets.parameterCount(), penalised = P - size_t(s.outputs);
@@ -307,6 +350,29 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
         store(v + at, selectAboveZero(count, vq, load(v + at)));
         store(p + at, selectAboveZero(count, next, pq));
     }
+}
+
+void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws) {
+    prepare(nets.shape, ws);
+    Step st{nets, ws};
+    for (int j = 0; j < W8; ++j) {
+        const LockstepLane& lane = lanes[j];
+        st.n = std::max(st.n, lane.count);
+        st.countLanes[j] = float(lane.count);
+        st.invLanes[j] = lane.count > 0 ? 1.0f / float(lane.count) : 0.0f;
+        const AdamRates r = adamRates(lane.learningRate, lane.c1, lane.c2);
+        st.rateLanes[j] = r.rate;
+        st.epsLanes[j] = r.epsilon;
+        st.decayLanes[j] = lane.weightDecay;
+    }
+    if (st.n == 0) return;
+    st.n4 = (st.n + 3) / 4 * 4;
+    gatherSamples(st, lanes);
+    forwardPass(st);
+    lossGradient(st, loss);
+    backpropagate(st);
+    sumGradient(st);
+    adamStep(st);
 }
 
 }  // namespace NRAD_LOCKSTEP_KERNELS
