@@ -51,7 +51,8 @@ struct LockstepLane {
 
 // Scratch space of a step, sized on first use.
 struct LockstepWorkspace {
-    std::vector<float> values, deltas, grad;
+    std::vector<float> buffer;
+    float *values = nullptr, *deltas = nullptr, *grad = nullptr;  // in buffer
     std::vector<size_t> at;  // each layer's activations (layer 0: the packed rows)
 };
 

@@ -163,9 +163,14 @@ void prepare(const NetworkShape& s, LockstepWorkspace& ws) {
     constexpr size_t B = MlpBatchWorkspace::kMaxBatch;
     ws.at.assign(1, 0);
     for (size_t l = 0; l <= layers; ++l) ws.at.push_back(ws.at.back() + B * stride(s, l) * W8);
-    ws.values.assign(ws.at.back(), 0.0f);
-    ws.deltas.assign(ws.at.back(), 0.0f);
-    ws.grad.assign(s.parameterCount() * W8, 0.0f);
+    // One buffer: the activations, then the deltas half a page further than a whole number of pages, so that a
+    // delta stored and the activation loaded at the same index never share their address's low 12 bits (4K
+    // aliasing: docs/design.md), then the gradient.
+    const size_t size = ws.at.back(), deltasAt = (size + 1023) / 1024 * 1024 + 512;
+    ws.buffer.assign(deltasAt + size + s.parameterCount() * W8, 0.0f);
+    ws.values = ws.buffer.data();
+    ws.deltas = ws.values + deltasAt;
+    ws.grad = ws.deltas + size;
 }
 
 }  // namespace
@@ -173,20 +178,26 @@ void prepare(const NetworkShape& s, LockstepWorkspace& ws) {
 // What the phases of a step share: the networks, the workspace, the most samples of any lane (n) and that
 // rounded up to four (n4), and the lanes' per-step values.
 struct Step {
+    Step(LockstepNetworks& networks, LockstepWorkspace& workspace)
+        : nets(networks), ws(workspace), s(networks.shape), L(s.hidden.size() + 1), values(ws.values), deltas(ws.deltas) {}
     LockstepNetworks& nets;
     LockstepWorkspace& ws;
+    const NetworkShape& s;
+    const size_t L;  // layers with weights
+    float* values;  // every layer's activations (layer 0: the samples)
+    float* deltas;
     int n = 0, n4 = 0;
     float countLanes[W8] = {}, invLanes[W8] = {}, rateLanes[W8] = {}, decayLanes[W8] = {}, epsLanes[W8] = {};
+
+    void gatherSamples(const LockstepLane lanes[kLockstepLanes]);
+    void forwardPass();
+    void lossGradient(LossKind loss);
+    void backpropagate();
+    void sumGradient();
+    void adamStep();
 };
 
-inline void gatherSamples(Step& st, const LockstepLane lanes[kLockstepLanes]) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
+inline void Step::gatherSamples(const LockstepLane lanes[kLockstepLanes]) {
     // The samples, lane by lane (a resting lane, or one past its count, reads zeros: finite, and its gradient is
     // masked to zero below).
     static const float zeros[kPackedFloats] = {};
@@ -199,14 +210,7 @@ inline void gatherSamples(Step& st, const LockstepLane lanes[kLockstepLanes]) {
     for (int k = n; k < n4; ++k) transposeRows(zeroRows, values + ws.at[0] + size_t(k) * kPackedFloats * W8);
 }
 
-inline void forwardPass(Step& st) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
+inline void Step::forwardPass() {
     // Forward: each unit's sum from its bias up in input order; ReLU on the hidden layers. Four samples at a time,
     // each weight loaded once for them (samples past n are the zero rows: finite, never in a gradient).
     for (int k0 = 0; k0 < n4; k0 += 4)
@@ -230,16 +234,9 @@ inline void forwardPass(Step& st) {
         }
 }
 
-inline void lossGradient(Step& st, LossKind loss) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
+inline void Step::lossGradient(LossKind loss) {
     // The loss's gradient at the outputs (loss.cpp's regressionGradient, lane by lane), zero past a lane's count.
-    const V8 count = load(st.countLanes);
+    const V8 count = load(countLanes);
     for (int k = 0; k < n4; ++k) {
         const float* row = values + ws.at[0] + size_t(k) * kPackedFloats * W8;
         const float* y = values + ws.at[L] + size_t(k) * 3 * W8;
@@ -260,14 +257,7 @@ inline void lossGradient(Step& st, LossKind loss) {
     }
 }
 
-inline void backpropagate(Step& st) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
+inline void Step::backpropagate() {
     // Backpropagation: each hidden unit's delta its sum over the next layer's units in order, from zero, where the
     // unit is active; four samples at a time.
     for (int k0 = 0; k0 < n4; k0 += 4)
@@ -290,16 +280,9 @@ inline void backpropagate(Step& st) {
         }
 }
 
-inline void sumGradient(Step& st) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
+inline void Step::sumGradient() {
     // The gradient, summed over the samples in order.
-    float* grad = ws.grad.data();
+    float* grad = ws.grad;
     for (size_t l = 0; l < L; ++l) {
         const int in = width(s, l), out = width(s, l + 1);
         const float* D = deltas + ws.at[l + 1];
@@ -318,20 +301,13 @@ inline void sumGradient(Step& st) {
     }
 }
 
-inline void adamStep(Step& st) {
-    [[maybe_unused]] LockstepNetworks& nets = st.nets;
-    [[maybe_unused]] const NetworkShape& s = nets.shape;
-    [[maybe_unused]] const size_t L = s.hidden.size() + 1;
-    [[maybe_unused]] const int n = st.n, n4 = st.n4;
-    [[maybe_unused]] LockstepWorkspace& ws = st.ws;
-    [[maybe_unused]] float* values = ws.values.data();
-    [[maybe_unused]] float* deltas = ws.deltas.data();
-    const float* grad = ws.grad.data();
+inline void Step::adamStep() {
+    const float* grad = ws.grad;
     // The mean gradient, the L2 penalty (not on the output biases), Adam (the bias corrections folded into the
     // rate and epsilon, as Kingma and Ba's Sec. 2 arranges it: one square root and one division a parameter);
     // resting lanes keep everything.
-    const V8 inv = load(st.invLanes), rate = load(st.rateLanes), decay = load(st.decayLanes), epsT = load(st.epsLanes);
-    const V8 count = load(st.countLanes);
+    const V8 inv = load(invLanes), rate = load(rateLanes), decay = load(decayLanes), epsT = load(epsLanes);
+    const V8 count = load(countLanes);
     const V8 b1 = splat(kAdamBeta1), b2 = splat(kAdamBeta2);
     const V8 nb1 = splat(1.0f - kAdamBeta1), nb2 = splat(1.0f - kAdamBeta2);
     const size_t P = nets.parameterCount(), penalised = P - size_t(s.outputs);
@@ -354,7 +330,7 @@ inline void adamStep(Step& st) {
 
 void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws) {
     prepare(nets.shape, ws);
-    Step st{nets, ws};
+    Step st(nets, ws);
     for (int j = 0; j < W8; ++j) {
         const LockstepLane& lane = lanes[j];
         st.n = std::max(st.n, lane.count);
@@ -367,12 +343,12 @@ void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes],
     }
     if (st.n == 0) return;
     st.n4 = (st.n + 3) / 4 * 4;
-    gatherSamples(st, lanes);
-    forwardPass(st);
-    lossGradient(st, loss);
-    backpropagate(st);
-    sumGradient(st);
-    adamStep(st);
+    st.gatherSamples(lanes);
+    st.forwardPass();
+    st.lossGradient(loss);
+    st.backpropagate();
+    st.sumGradient();
+    st.adamStep();
 }
 
 }  // namespace NRAD_LOCKSTEP_KERNELS
