@@ -513,6 +513,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"blend_band", settings.blendBand},
                  {"weight_decays", t.weightDecays},
                  {"race_epochs", t.weightDecays.size() > 1 ? t.raceEpochs : 0},
+                 {"epoch_average", t.epochAverage},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
     if (settings.training == TrainingMethod::Integral) {  // only then, so that Monte Carlo assets keep their bytes

@@ -25,11 +25,11 @@ namespace nrad {
 
 struct TrainSettings {
     NetworkShape shape;
-    int epochs = 1500;
+    int epochs = 500;
     int batchSize = 32;
     float learningRate = 0.01f;  // decays exponentially to a tenth over the epochs
     float holdoutFraction = 0.1f;
-    int patience = 300;  // epochs without a better held-out error before stopping
+    int patience = 100;  // epochs without a better held-out error before stopping
     LossKind loss = LossKind::RelativeL2;
     uint32_t seed = 0;
     int maxAttempts = 3;
@@ -48,6 +48,11 @@ struct TrainSettings {
     // held-out error so far wins and trains on alone; the others stop there (0: every candidate trains to its end
     // and the lowest final held-out error wins).
     int raceEpochs = 0;
+    // Each epoch's held-out check judges, and the training keeps, a moving average of the parameters over the epochs
+    // instead of the parameters themselves: with noisy targets the optimiser's parameters wander about the fit by its
+    // step, and the average removes most of that (docs/training.md). The decay per epoch is min(this,
+    // (1 + e) / (10 + e)) at epoch e, so that an early best is not weighed down by the first epochs; 0: none.
+    float epochAverage = 0.9f;
     // A network whose targets are all grey outputs the mean of its three channels (its output rows averaged after
     // training): no colour where its data has none. Each channel's own noise otherwise tints it (a grey room
     // came out pink, green and purple: docs/results.md).

@@ -129,17 +129,19 @@ public:
         seconds_ += seconds;
         return at_ >= perm_.size();
     }
-    // The epoch's held-out error of the lane's parameters, and what follows: the next epoch, the next attempt or the end.
+    // The epoch's held-out error of the lane's parameters (their average: averaged()), and what follows: the next epoch, the
+    // next attempt or the end.
     void endEpoch(const std::vector<float>& params) {
         const Clock::time_point t0 = Clock::now();
-        mlp_.parameters() = params;
+        const std::vector<float>* judged = averaged(params);
+        mlp_.parameters() = *judged;
         double err = 0.0;
         diverged_ = !mlp_.allFinite() || !std::isfinite(err = epochError());
         if (diverged_) return endAttempt(t0);
         if (epoch_ % std::max(1, s_.curveEvery) == 0) curve_.push_back({epoch_, seconds_, err});
         if (err < best_) {
             best_ = err;
-            bestParams_ = params;
+            bestParams_ = *judged;
             sinceBest_ = 0;
         } else if (++sinceBest_ > s_.patience) {
             return endAttempt(t0);
@@ -155,6 +157,20 @@ public:
     VoxelTrainResult takeResult() { return std::move(result_); }
 
 private:
+    // What the epoch's check judges and the training keeps: the moving average of the lane's parameters over the epochs
+    // (TrainSettings::epochAverage, its decay min(D, (1 + e) / (10 + e)) at epoch e, from the first epoch's
+    // parameters), or the parameters themselves.
+    const std::vector<float>* averaged(const std::vector<float>& params) {
+        const float limit = s_.epochAverage;
+        if (!(limit > 0.0f)) return &params;
+        if (epoch_ == 0) {
+            average_ = params;
+        } else {
+            const float d = std::min(limit, float(1 + epoch_) / float(10 + epoch_)), e = 1.0f - d;
+            for (size_t i = 0; i < params.size(); ++i) average_[i] = d * average_[i] + e * params[i];
+        }
+        return &average_;
+    }
     double evaluate(const std::vector<size_t>& set) { return shadedError(mlp_, bws_, d_, set, s_, result_.transform, result_.scale); }
     // The held-out error of mlp_ as each epoch's check sees it: shadedError's (the weighted mean relMSE as shaded) to
     // rounding, its per-sample terms in float with the reciprocals taken once (shadedError's divisions in double cost
@@ -247,7 +263,7 @@ private:
     Mlp mlp_;
     MlpBatchWorkspace bws_;
     VoxelTrainResult result_;
-    std::vector<float> packed_, heldOutInputs_, heldOutTerms_, bestParams_, kept_;
+    std::vector<float> packed_, heldOutInputs_, heldOutTerms_, bestParams_, kept_, average_;
     std::vector<size_t> perm_;
     std::vector<TrainCurvePoint> curve_;
     LaneState laneState_;

@@ -82,6 +82,7 @@ struct BakeOptions {
     int maxDepth = defaults().samples.maxDepth, epochs = defaults().train.epochs, batch = defaults().train.batchSize;
     int patience = defaults().train.patience, raceEpochs = defaults().train.raceEpochs;
     float learningRate = defaults().train.learningRate, blendBand = defaults().blendBand;
+    float epochAverage = defaults().train.epochAverage;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
@@ -218,6 +219,9 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--race-epochs", &o.raceEpochs,
           "With several --weight-decay values: after this many epochs the one with the lowest held-out error so far trains "
           "on alone; 0 = each trains to its end");
+    t.add("--epoch-average", &o.epochAverage,
+          "Decay per epoch (0 to 0.99) of the parameters' moving average that each epoch's held-out check judges and the "
+          "training keeps; 0 = the parameters themselves");
     t.add("--blend-band", &o.blendBand,
           "Half-width in voxels of the band around voxel faces where neighbouring networks blend, 0 to 0.5; 0 = none");
     t.add("--budget", &o.budget,
@@ -268,6 +272,7 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     if (o.noisyPaths < 1 || o.noisyPaths > 64) return usage("--noisy-paths: expected 1 (off) to 64");
     if (o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f) || o.raceEpochs < 0)
         return usage("--epochs, --batch-size, --patience and --learning-rate must be positive, --max-depth and --race-epochs >= 0");
+    if (!(o.epochAverage >= 0.0f && o.epochAverage <= 0.99f)) return usage("--epoch-average must be between 0 and 0.99");
     if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
         return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
     s.blendBand = o.blendBand;
@@ -327,6 +332,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.train.batchSize = o.batch;
     s.train.patience = o.patience;
     s.train.raceEpochs = o.raceEpochs;
+    s.train.epochAverage = o.epochAverage;
     s.train.learningRate = o.learningRate;
     s.train.seed = o.seed;
     s.metadata = !o.noMetadata;

@@ -328,8 +328,6 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
         for (const TrainingSample& s : set) entries.back().push_back({&s, 1.0f, grid.positionInVoxel(s.position, 0)});
     }
     TrainSettings settings;
-    settings.epochs = 60;
-    settings.patience = 3;
     settings.restarts = 2;  // with the two weight decays: 44 trainings
     std::vector<uint32_t> ids;
     std::vector<const std::vector<VoxelSample>*> sets;
@@ -337,9 +335,14 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
         ids.push_back(uint32_t(v));
         sets.push_back(&entries[v]);
     }
-    // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free).
-    for (int race : {0, 10}) {
+    // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free);
+    // the parameters themselves judged each epoch, and their epoch average (the default).
+    for (const auto& [race, average] : {std::pair<int, float>{0, 0.0f}, {10, 0.0f}, {0, 0.9f}, {10, 0.9f}}) {
         settings.raceEpochs = race;
+        settings.epochAverage = average;
+        // The average's error falls more smoothly: longer and less patient, so that some stop early.
+        settings.epochs = average > 0.0f ? 200 : 60;
+        settings.patience = average > 0.0f ? 1 : 3;
         std::vector<VoxelTrainResult> alone;
         for (size_t v = 0; v < entries.size(); ++v) alone.push_back(trainVoxel(uint32_t(v), entries[v], settings));
         for (int threads : {1, 2}) {
@@ -350,15 +353,17 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
             EXPECT_EQ(done, alone.size()) << threads << " threads";
             for (size_t v = 0; v < alone.size(); ++v) {
                 EXPECT_EQ(together[v].voxel, uint32_t(v));
-                EXPECT_EQ(together[v].params, alone[v].params) << "voxel " << v << ", " << threads << " threads, race " << race;
+                EXPECT_EQ(together[v].params, alone[v].params)
+                    << "voxel " << v << ", " << threads << " threads, race " << race << ", average " << average;
                 EXPECT_EQ(together[v].heldOutRelMse, alone[v].heldOutRelMse);
                 EXPECT_EQ(together[v].epochs, alone[v].epochs);
                 EXPECT_EQ(together[v].weightDecay, alone[v].weightDecay);
             }
         }
         // The trainings end at different steps: some stop early, some run every epoch.
-        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs < 60; }));
-        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const VoxelTrainResult& r) { return r.epochs == 60; }));
+        const int epochs = settings.epochs;
+        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [&](const VoxelTrainResult& r) { return r.epochs < epochs; })) << average;
+        EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [&](const VoxelTrainResult& r) { return r.epochs == epochs; })) << average;
     }
 }
 
