@@ -61,6 +61,8 @@ std::vector<std::vector<VoxelSample>> samplesByNetwork(const eval::Partition& pa
                 out[cellOfSample[i]].push_back({&s, 1.0f, ownPosition(i)});
         }
     }
+    // Without the slack of the pushes (about 40 MB of zdm2's 166 MB of supports).
+    for (std::vector<VoxelSample>& cell : out) cell.shrink_to_fit();
     return out;
 }
 
