@@ -11,8 +11,8 @@
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <utility>
 #include <stdexcept>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
