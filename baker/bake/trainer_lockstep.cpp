@@ -1,6 +1,6 @@
 // Training the voxels' networks, many at once: every training (a voxel's network under one weight decay, from one
 // initialisation) is a job that runs in one lane of networks trained in lockstep (baker/nn/mlp_lockstep.h), eight
-// to a register; a lane whose job ends takes the next. Each job keeps its own schedule: its samples' order, its
+// or sixteen to a register (the kernel's lanes); a lane whose job ends takes the next. Each job keeps its own schedule: its samples' order, its
 // learning rate and Adam's step count, its held-out error after every epoch, early stopping, re-initialisation
 // after a failed attempt and the constant fallback (trainer.h). A lane's arithmetic never meets another lane's, so
 // a job's result is the same whichever lane, group or thread runs it and whatever runs beside it.
@@ -39,7 +39,8 @@ double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(
 class Training {
 public:
     Training(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings, float weightDecay, int restart)
-        : s_(settings), decay_(weightDecay), restart_(restart), d_(prepareSamples(voxel, entries, settings, 0)), mlp_(settings.shape) {
+        : s_(settings), decay_(weightDecay), restart_(restart), voxel_(voxel), entries_(entries), d_(prepareSamples(voxel, entries, settings, 0)),
+          mlp_(settings.shape) {
         result_.voxel = voxel;
         result_.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
         result_.trainCount = d_.train.size();
@@ -117,7 +118,7 @@ public:
         lane.count = int(std::min(batch_, perm_.size() - at_));
         for (int k = 0; k < lane.count; ++k) lane.rows[k] = &packed_[perm_[at_ + size_t(k)] * kPackedFloats];
         lane.learningRate = rate_;
-        lane.weightDecay = decay_ / float(std::max<size_t>(1, d_.train.size()));
+        lane.weightDecay = decay_ / float(std::max<size_t>(1, result_.trainCount));
         beta1Power_ *= kAdamBeta1;
         beta2Power_ *= kAdamBeta2;
         lane.c1 = float(1.0 - beta1Power_);
@@ -200,7 +201,8 @@ private:
         const uint64_t initSeed = (uint64_t(s_.seed) << 32) ^ (uint64_t(result_.voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart_) << 4);
         mlp_.initialize(initSeed, s_.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
         order_ = SplitMix64(initSeed ^ 0x5851f42d4c957f2dull);
-        perm_ = d_.train;
+        dropPrepared();
+        perm_ = train_;
         best_ = std::numeric_limits<double>::infinity();
         bestParams_ = mlp_.parameters();
         curve_.clear();
@@ -212,12 +214,25 @@ private:
         if (s_.epochs <= 0) return endAttempt(Clock::now());
         beginEpoch();
     }
+    // The prepared samples are not read while the lanes train (they step on packed_ and judge on heldOut*): they
+    // go for that time, half of a training's memory (the largest voxels of a 1 MB zdm2 bake hold 30,000-67,000
+    // samples each, and a group of sixteen lanes trains the sixteen largest at once), and are prepared again, the
+    // same, when an attempt ends.
+    void dropPrepared() {
+        if (!d_.entries) return;
+        train_ = std::move(d_.train);
+        d_ = PreparedSamples{};
+    }
+    void prepareAgain() {
+        if (!d_.entries) d_ = prepareSamples(voxel_, entries_, s_, 0);
+    }
     void beginEpoch() {
         for (size_t i = perm_.size(); i > 1; --i) std::swap(perm_[i - 1], perm_[size_t(order_.below(i))]);
         rate_ = exponentialDecay(s_.learningRate, 0.1f, float(epoch_) / float(std::max(1, s_.epochs)));
         at_ = 0;
     }
     void endAttempt(Clock::time_point t0) {
+        prepareAgain();
         mlp_.parameters() = bestParams_;
         const std::string failure = attemptFailure(mlp_, d_, d_.train, s_, invScale_, diverged_ && !std::isfinite(best_));
         seconds_ += secondsSince(t0);
@@ -234,6 +249,7 @@ private:
     }
     void finish() {
         const Clock::time_point t0 = Clock::now();
+        prepareAgain();
         if (kept_.empty()) {
             // Every attempt failed: store a network that outputs the voxel's mean radiance, always finite.
             result_.fallback = true;
@@ -257,6 +273,7 @@ private:
         // Only the result is read from here on, while the voxel's other candidates train: the samples' copies go
         // (150 bytes a sample; the largest voxels of a 1 MB zdm2 bake hold 30,000-67,000 samples each).
         d_ = PreparedSamples{};
+        std::vector<size_t>().swap(train_);
         for (std::vector<float>* v : {&packed_, &heldOutInputs_, &heldOutTerms_, &average_}) std::vector<float>().swap(*v);
         std::vector<size_t>().swap(perm_);
     }
@@ -264,7 +281,10 @@ private:
     const TrainSettings& s_;
     float decay_;
     int restart_;
-    PreparedSamples d_;
+    uint32_t voxel_;
+    const std::vector<VoxelSample>& entries_;
+    PreparedSamples d_;  // while the lanes train, empty (dropPrepared)
+    std::vector<size_t> train_;  // d_.train, kept while d_ is dropped
     Mlp mlp_;
     MlpBatchWorkspace bws_;
     VoxelTrainResult result_;
@@ -334,9 +354,14 @@ public:
     }
 
     std::vector<VoxelTrainResult> run() {
-        const size_t groups = std::clamp<size_t>((jobs_.size() + kLockstepLanes - 1) / kLockstepLanes, 1,
-                                                 size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
-        tbb::parallel_for(size_t(0), groups, [&](size_t) { runGroup(); });
+        const size_t threads = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
+        // Sixteen lanes only where there are trainings enough to keep them busy: a small bake waits on its longest
+        // trainings, whose steps cost more in sixteen lanes than in eight (docs/performance.md). Any kernel gives
+        // the same networks.
+        const LockstepKernel& kernel = lockstepKernel(jobs_.size() >= size_t(4 * kMaxLockstepLanes) * threads ? kMaxLockstepLanes : 8);
+        const size_t lanes = size_t(kernel.lanes);
+        const size_t groups = std::clamp<size_t>((jobs_.size() + lanes - 1) / lanes, 1, threads);
+        tbb::parallel_for(size_t(0), groups, [&](size_t) { runGroup(kernel); });
         return std::move(out_);
     }
 
@@ -421,20 +446,20 @@ private:
     }
 
     // One group of lanes: takes trainings until none is left, stepping all its busy lanes together.
-    void runGroup() {
-        LockstepNetworks nets(settings_.shape);
+    void runGroup(const LockstepKernel& kernel) {
+        LockstepNetworks nets(settings_.shape, kernel.lanes);
         LockstepWorkspace ws;
-        Held lane[kLockstepLanes];
+        Held lane[kMaxLockstepLanes];
         std::vector<float> params;
         for (;;) {
-            LockstepLane in[kLockstepLanes];
+            LockstepLane in[kMaxLockstepLanes];
             int busy = 0;
-            for (int j = 0; j < kLockstepLanes; ++j) busy += fillLane(nets, lane[j], j, in[j], params) ? 1 : 0;
+            for (int j = 0; j < nets.lanes; ++j) busy += fillLane(nets, lane[j], j, in[j], params) ? 1 : 0;
             if (busy == 0) break;
             const Clock::time_point t0 = Clock::now();
-            lockstepTrainStep(nets, in, settings_.loss, ws);
+            kernel.step(nets, in, settings_.loss, ws);
             const double share = secondsSince(t0) / double(busy);
-            for (int j = 0; j < kLockstepLanes; ++j)
+            for (int j = 0; j < nets.lanes; ++j)
                 if (in[j].count > 0 && lane[j].training->stepped(in[j].count, share)) {
                     nets.getLane(j, params);
                     lane[j].training->endEpoch(params);

@@ -1,13 +1,81 @@
 // Networks in lockstep: their interleaved storage, the plain lanes (std::fma: a libm call where the CPU has no
 // fused multiply-add, the same bits), and the choice of kernels at run time.
+#include <cstdlib>
+#include <cstring>
+
 #define NRAD_LOCKSTEP_KERNELS lockstep_plain
 #include "baker/nn/mlp_lockstep_impl.h"
 
 #include "baker/nn/mlp_batch.h"  // cpuHasAvx2
 
 namespace nrad {
+namespace lockstep_plain {
+namespace {
 
-LockstepNetworks::LockstepNetworks(const NetworkShape& s) : shape(s) {
+// W lanes as plain floats, lane by lane.
+template <int N>
+struct Lanes {
+    static constexpr int W = N;
+    static constexpr int kGradInputs = 4;
+    float f[N];
+    static Lanes splat(float x) {
+        Lanes r;
+        for (float& f : r.f) f = x;
+        return r;
+    }
+    static Lanes load(const float* p) {
+        Lanes r;
+        for (int j = 0; j < N; ++j) r.f[j] = p[j];
+        return r;
+    }
+    static void store(float* p, Lanes a) {
+        for (int j = 0; j < N; ++j) p[j] = a.f[j];
+    }
+    static void transposeRows(const float* const rows[N], float* out) {
+        for (int q = 0; q < kPackedFloats; ++q)
+            for (int j = 0; j < N; ++j) out[size_t(q) * N + size_t(j)] = rows[j][q];
+    }
+    template <class Op>
+    friend Lanes lanewise(Lanes a, Lanes b, Op op) {
+        Lanes r;
+        for (int j = 0; j < N; ++j) r.f[j] = op(a.f[j], b.f[j]);
+        return r;
+    }
+    friend Lanes operator+(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x + y; }); }
+    friend Lanes operator-(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x - y; }); }
+    friend Lanes operator*(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x * y; }); }
+    friend Lanes operator/(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x / y; }); }
+    friend Lanes sqrt(Lanes a) { return lanewise(a, a, [](float x, float) { return std::sqrt(x); }); }
+    friend Lanes fma(Lanes a, Lanes b, Lanes c) {
+        Lanes r;
+        for (int j = 0; j < N; ++j) r.f[j] = std::fma(a.f[j], b.f[j], c.f[j]);
+        return r;
+    }
+    friend Lanes whereAboveZero(Lanes p, Lanes v) { return lanewise(p, v, [](float x, float y) { return x > 0.0f ? y : 0.0f; }); }
+    friend Lanes whereLess(Lanes a, Lanes b, Lanes v) {
+        Lanes r;
+        for (int j = 0; j < N; ++j) r.f[j] = a.f[j] < b.f[j] ? v.f[j] : 0.0f;
+        return r;
+    }
+    friend Lanes selectAboveZero(Lanes m, Lanes a, Lanes b) {
+        Lanes r;
+        for (int j = 0; j < N; ++j) r.f[j] = m.f[j] > 0.0f ? a.f[j] : b.f[j];
+        return r;
+    }
+};
+
+}  // namespace
+
+void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws) {
+    if (nets.lanes == 16)
+        stepWith<Lanes<16>>(nets, lanes, loss, ws);
+    else
+        stepWith<Lanes<8>>(nets, lanes, loss, ws);
+}
+
+}  // namespace lockstep_plain
+
+LockstepNetworks::LockstepNetworks(const NetworkShape& s, int laneCount) : shape(s), lanes(laneCount) {
     size_t at = 0;
     int in = shape.inputs;
     const size_t layers = shape.hidden.size() + 1;
@@ -17,14 +85,14 @@ LockstepNetworks::LockstepNetworks(const NetworkShape& s) : shape(s) {
         at += size_t(out) * size_t(in) + size_t(out);
         in = out;
     }
-    params.assign(at * kLockstepLanes, 0.0f);
+    params.assign(at * size_t(lanes), 0.0f);
     m.assign(params.size(), 0.0f);
     v.assign(params.size(), 0.0f);
 }
 
 void LockstepNetworks::setLane(int lane, const std::vector<float>& p) {
     for (size_t q = 0; q < p.size(); ++q) {
-        const size_t at = q * kLockstepLanes + size_t(lane);
+        const size_t at = q * size_t(lanes) + size_t(lane);
         params[at] = p[q];
         m[at] = 0.0f;
         v[at] = 0.0f;
@@ -33,7 +101,7 @@ void LockstepNetworks::setLane(int lane, const std::vector<float>& p) {
 
 void LockstepNetworks::getLane(int lane, std::vector<float>& p) const {
     p.resize(parameterCount());
-    for (size_t q = 0; q < p.size(); ++q) p[q] = params[q * kLockstepLanes + size_t(lane)];
+    for (size_t q = 0; q < p.size(); ++q) p[q] = params[q * size_t(lanes) + size_t(lane)];
 }
 
 void LockstepNetworks::getLaneState(int lane, std::vector<float>& p, std::vector<float>& mOut, std::vector<float>& vOut) const {
@@ -41,37 +109,42 @@ void LockstepNetworks::getLaneState(int lane, std::vector<float>& p, std::vector
     mOut.resize(p.size());
     vOut.resize(p.size());
     for (size_t q = 0; q < p.size(); ++q) {
-        mOut[q] = m[q * kLockstepLanes + size_t(lane)];
-        vOut[q] = v[q * kLockstepLanes + size_t(lane)];
+        mOut[q] = m[q * size_t(lanes) + size_t(lane)];
+        vOut[q] = v[q * size_t(lanes) + size_t(lane)];
     }
 }
 
 void LockstepNetworks::setLaneState(int lane, const std::vector<float>& p, const std::vector<float>& mIn, const std::vector<float>& vIn) {
     for (size_t q = 0; q < p.size(); ++q) {
-        const size_t at = q * kLockstepLanes + size_t(lane);
+        const size_t at = q * size_t(lanes) + size_t(lane);
         params[at] = p[q];
         m[at] = mIn[q];
         v[at] = vIn[q];
     }
 }
 
-namespace {
-#if defined(__x86_64__)
-bool cpuHasAvx2Fma() {
-    static const bool yes = [] {
-        __builtin_cpu_init();
-        return cpuHasAvx2() && __builtin_cpu_supports("fma") != 0;
-    }();
-    return yes;
-}
-#endif
-}  // namespace
-
-void lockstepTrainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws) {
+const std::vector<LockstepKernel>& lockstepKernels() {
+    static const std::vector<LockstepKernel> kernels = [] {
+        std::vector<LockstepKernel> out = {{"plain", 8, lockstep_plain::trainStep}, {"plain16", 16, lockstep_plain::trainStep}};
 #if defined(__x86_64__) && !defined(NRAD_LOCKSTEP_PLAIN_ONLY)
-    if (cpuHasAvx2Fma()) return lockstep_avx2::trainStep(nets, lanes, loss, ws);
+        __builtin_cpu_init();
+        if (cpuHasAvx2() && __builtin_cpu_supports("fma")) out.push_back({"avx2", 8, lockstep_avx2::trainStep});
+        if (__builtin_cpu_supports("avx512f")) out.push_back({"avx512", 16, lockstep_avx512::trainStep});
 #endif
-    lockstep_plain::trainStep(nets, lanes, loss, ws);
+        return out;
+    }();
+    return kernels;
+}
+
+const LockstepKernel& lockstepKernel(int maxLanes) {
+    const std::vector<LockstepKernel>& all = lockstepKernels();
+    static const char* const forced = std::getenv("NRAD_TRAIN_KERNEL");
+    if (forced && *forced)
+        for (const LockstepKernel& k : all)
+            if (!std::strcmp(k.name, forced) && k.lanes <= maxLanes) return k;
+    for (size_t k = all.size(); k-- > 0;)  // the instruction sets' kernels last, the widest last of all
+        if (all[k].lanes <= maxLanes && std::strcmp(all[k].name, "plain16") != 0) return all[k];
+    return all.front();
 }
 
 }  // namespace nrad

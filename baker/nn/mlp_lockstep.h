@@ -5,8 +5,12 @@
 // lane is therefore independent of the other lanes, of the lane it runs in and of the instruction set
 // (tests/baker/nn/mlp_lockstep_test.cpp holds each to a plain scalar reference, bit for bit).
 //
-// One step (lockstepTrainStep) is a whole mini-batch step of each lane's network: forward, the regression loss's
+// One step (LockstepKernel::step) is a whole mini-batch step of each lane's network: forward, the regression loss's
 // gradient, backpropagation, the gradient summed over the batch, divided by its count, the L2 penalty, and Adam.
+//
+// The number of lanes is the kernel's: 8 for AVX2 and the plain lanes, 16 for AVX-512. Since a lane's result does
+// not depend on its neighbours, it does not depend on how many there are either: every kernel gives the same
+// networks, and so the same assets.
 #pragma once
 
 #include <cmath>
@@ -18,19 +22,20 @@
 
 namespace nrad {
 
-constexpr int kLockstepLanes = 8;
+constexpr int kMaxLockstepLanes = 16;
 // A training sample packed for the lanes: inputs (9), loss targets in the output space (3, lossTarget), per-channel
 // loss weights (3), one float of padding.
 constexpr int kPackedInputs = 9, kPackedTarget = 9, kPackedWeight = 12, kPackedFloats = 16;
 
-// Parameters and Adam's moments of kLockstepLanes networks, interleaved: parameter q of lane j at
-// [q kLockstepLanes + j] (q in the Mlp layout).
+// Parameters and Adam's moments of `lanes` networks, interleaved: parameter q of lane j at [q lanes + j] (q in the
+// Mlp layout).
 struct LockstepNetworks {
-    explicit LockstepNetworks(const NetworkShape& shape);
+    LockstepNetworks(const NetworkShape& shape, int lanes);
     NetworkShape shape;
+    int lanes;
     std::vector<size_t> offsets;  // of each layer's parameters (W out x in, then b), as Mlp's
     std::vector<float> params, m, v;
-    size_t parameterCount() const { return offsets.empty() ? 0 : params.size() / kLockstepLanes; }
+    size_t parameterCount() const { return offsets.empty() ? 0 : params.size() / size_t(lanes); }
     // Lane j's parameters in or out, in the Mlp layout; setLane also zeroes its Adam moments.
     void setLane(int lane, const std::vector<float>& p);
     void getLane(int lane, std::vector<float>& p) const;
@@ -51,6 +56,7 @@ struct LockstepLane {
 
 // Scratch space of a step, sized on first use.
 struct LockstepWorkspace {
+    int lanes = 0;
     std::vector<float> buffer;
     float *values = nullptr, *deltas = nullptr, *grad = nullptr;  // in buffer
     std::vector<size_t> at;  // each layer's activations (layer 0: the packed rows)
@@ -68,17 +74,32 @@ inline AdamRates adamRates(float learningRate, float c1, float c2) {
     return {float(double(learningRate) * root / double(c1)), float(double(kAdamEpsilon) * root)};
 }
 
-// One mini-batch step of every lane with count > 0. The loss: LossKind's regression gradient (lossTarget already
-// applied to the packed targets), each channel weighing its packed weight. Inputs, shape: 9 in, 3 out.
-void lockstepTrainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+// A kernel: its name, its lanes and its step: one mini-batch step of every lane (nets.lanes of them, which must be
+// `lanes`) with count > 0. The loss: LossKind's regression gradient (lossTarget already applied to the packed
+// targets), each channel weighing its packed weight. Inputs, shape: 9 in, 3 out.
+using LockstepStep = void (*)(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
+struct LockstepKernel {
+    const char* name;
+    int lanes;
+    LockstepStep step;
+};
+// The kernels this CPU can run, plain first: "plain" (8 lanes, std::fma), "plain16" (the same with 16 lanes),
+// "avx2" (AVX2 with FMA, 8 lanes), "avx512" (AVX-512F, 16 lanes).
+const std::vector<LockstepKernel>& lockstepKernels();
+// The kernel to train with, of at most maxLanes lanes: the one the environment's NRAD_TRAIN_KERNEL names where this
+// CPU runs it and it fits, else the fastest that fits (avx512, avx2, plain).
+const LockstepKernel& lockstepKernel(int maxLanes = kMaxLockstepLanes);
 
-// The kernels of one instruction set; lockstepTrainStep picks one at run time.
-namespace lockstep_plain {
-void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+// The kernels of one instruction set.
+namespace lockstep_plain {  // 8 or 16 lanes, as nets.lanes
+void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
 }
 #if defined(__x86_64__)
-namespace lockstep_avx2 {  // AVX2 with FMA
-void trainStep(LockstepNetworks& nets, const LockstepLane lanes[kLockstepLanes], LossKind loss, LockstepWorkspace& ws);
+namespace lockstep_avx2 {  // AVX2 with FMA, 8 lanes
+void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
+}
+namespace lockstep_avx512 {  // AVX-512F, 16 lanes
+void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
 }
 #endif
 

@@ -8,7 +8,7 @@
 // the peak (lane-FMAs per second of fma_peak.h at the widest vector width) is what issue 40's goal 1 asks
 // about: >= 30% on one core.
 //
-// Usage: train_bench [--steps 200000] [--repeat 3] [--threads 2]
+// Usage: train_bench [--steps 200000] [--repeat 3] [--threads 2] [--kernel plain|plain16|avx2|avx512]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -82,17 +82,20 @@ struct Trainer {
     }
 };
 
-// kLockstepLanes networks in lockstep (mlp_lockstep.h), each lane a mini-batch of kBatch of its own 512 samples.
+// A kernel's lanes of networks in lockstep (mlp_lockstep.h), each lane a mini-batch of kBatch of its own 512
+// samples.
 struct LockstepTrainer {
+    LockstepKernel kernel;
     LockstepNetworks nets;
     LockstepWorkspace ws;
     std::vector<float> samples;
-    LockstepLane lanes[kLockstepLanes];
+    LockstepLane lanes[kMaxLockstepLanes];
     int t = 0;
 
-    explicit LockstepTrainer(const NetworkShape& shape, uint64_t seed) : nets(shape), samples(size_t(512) * kLockstepLanes * kPackedFloats) {
+    LockstepTrainer(const LockstepKernel& k, const NetworkShape& shape, uint64_t seed)
+        : kernel(k), nets(shape, k.lanes), samples(size_t(512) * size_t(k.lanes) * kPackedFloats) {
         for (size_t i = 0; i < samples.size(); ++i) samples[i] = float((i * 37 + seed) % 101) / 101.0f - 0.3f;
-        for (int j = 0; j < kLockstepLanes; ++j) {
+        for (int j = 0; j < kernel.lanes; ++j) {
             Mlp mlp(shape);
             mlp.initialize(seed * 16 + uint64_t(j), 1.0f);
             nets.setLane(j, mlp.parameters());
@@ -102,26 +105,26 @@ struct LockstepTrainer {
     }
     void step() {
         ++t;
-        for (int j = 0; j < kLockstepLanes; ++j) {
+        for (int j = 0; j < kernel.lanes; ++j) {
             for (int k = 0; k < kBatch; ++k)
                 lanes[j].rows[k] = &samples[((size_t(j) * 512) + size_t((t * kBatch + k) % 512)) * kPackedFloats];
             lanes[j].c1 = float(1.0 - std::pow(0.9, t));
             lanes[j].c2 = float(1.0 - std::pow(0.999, t));
         }
-        lockstepTrainStep(nets, lanes, LossKind::RelativeL2, ws);
+        kernel.step(nets, lanes, LossKind::RelativeL2, ws);
     }
 };
 
-// Sample-epochs per second of `threads` threads, each training its own network (lockstep: its own
-// kLockstepLanes networks) for `steps` steps.
-double sampleRate(const NetworkShape& shape, int threads, int steps, bool lockstep) {
+// Sample-epochs per second of `threads` threads, each training its own network (with a lockstep kernel: its own
+// kernel->lanes networks) for `steps` steps.
+double sampleRate(const NetworkShape& shape, int threads, int steps, const LockstepKernel* lockstep) {
     std::vector<std::thread> pool;
     const auto t0 = Clock::now();
-    const int perStep = lockstep ? kLockstepLanes : 1;
+    const int perStep = lockstep ? lockstep->lanes : 1;
     for (int t = 0; t < threads; ++t)
         pool.emplace_back([&shape, steps, t, lockstep, perStep] {
             if (lockstep) {
-                LockstepTrainer tr(shape, uint64_t(t) + 1);
+                LockstepTrainer tr(*lockstep, shape, uint64_t(t) + 1);
                 for (int s = 0; s < steps / perStep; ++s) tr.step();
             } else {
                 Trainer tr(shape, uint64_t(t) + 1);
@@ -136,8 +139,10 @@ double sampleRate(const NetworkShape& shape, int threads, int steps, bool lockst
 
 int main(int argc, char** argv) {
     int steps = 200000, repeat = 3, threads = 2;
+    std::string only;  // --kernel NAME: that lockstep kernel alone
     for (int i = 1; i + 1 < argc; i += 2) {
         if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
+        else if (!std::strcmp(argv[i], "--kernel")) only = argv[i + 1];
         else if (!std::strcmp(argv[i], "--repeat")) repeat = std::max(1, std::atoi(argv[i + 1]));
         else if (!std::strcmp(argv[i], "--threads")) threads = std::max(1, std::atoi(argv[i + 1]));
     }
@@ -161,29 +166,34 @@ int main(int argc, char** argv) {
             double t[3] = {0, 0, 0};
             for (int s = 0; s < steps / 4; ++s) tr.step(t);
             for (int k = 0; k < 3; ++k) best[k] = std::min(best[k], t[k] / double(steps / 4) * 1e9);
-            rate1 = std::max(rate1, sampleRate(shape, 1, steps, false));
-            rateN = std::max(rateN, sampleRate(shape, threads, steps, false));
+            rate1 = std::max(rate1, sampleRate(shape, 1, steps, nullptr));
+            rateN = std::max(rateN, sampleRate(shape, threads, steps, nullptr));
         }
         const double macs = macsPerSample(shape);
         std::printf("| %s | %.0f / %.0f / %.0f | %.3g M | %.1f%% | %.3g M | %.2fx | %.1f%% |\n", shapeName(shape).c_str(), best[0], best[1],
                     best[2], rate1 * 1e-6, peak1 > 0 ? 100.0 * rate1 * macs / peak1 : 0.0, rateN * 1e-6, rateN / rate1,
                     peakN > 0 ? 100.0 * rateN * macs / peakN : 0.0);
     }
-    std::printf("\nLockstep, %d networks a step (mlp_lockstep.h):\n| shape | ns per step of %d x %d | sample-epochs/s, 1 thread | of the "
-                "1-thread peak | %d threads | speed-up | of the %d-thread peak |\n|---|---|---|---|---|---|---|\n",
-                kLockstepLanes, kLockstepLanes, kBatch, threads, threads);
-    for (const std::vector<int>& hidden : std::vector<std::vector<int>>{{9}, {16}, {32}, {16, 16}}) {
-        NetworkShape shape;
-        shape.hidden = hidden;
-        double rate1 = 0.0, rateN = 0.0;
-        for (int r = 0; r < repeat; ++r) {
-            rate1 = std::max(rate1, sampleRate(shape, 1, steps, true));
-            rateN = std::max(rateN, sampleRate(shape, threads, steps, true));
+    std::printf("\nLockstep, one network per lane (mlp_lockstep.h; the baker trains with %s):\n| kernel | shape | ns per step of "
+                "lanes x %d | sample-epochs/s, 1 thread | of the 1-thread peak | %d threads | speed-up | of the %d-thread peak |\n"
+                "|---|---|---|---|---|---|---|---|\n",
+                lockstepKernel().name, kBatch, threads, threads);
+    for (const LockstepKernel& kernel : lockstepKernels()) {
+        if (!only.empty() && only != kernel.name) continue;
+        for (const std::vector<int>& hidden : std::vector<std::vector<int>>{{9}, {16}, {32}, {16, 16}}) {
+            NetworkShape shape;
+            shape.hidden = hidden;
+            double rate1 = 0.0, rateN = 0.0;
+            const int kernelSteps = std::strncmp(kernel.name, "plain", 5) ? steps : std::max(kernel.lanes, steps / 8);  // plain lanes are slow
+            for (int r = 0; r < repeat; ++r) {
+                rate1 = std::max(rate1, sampleRate(shape, 1, kernelSteps, &kernel));
+                rateN = std::max(rateN, sampleRate(shape, threads, kernelSteps, &kernel));
+            }
+            const double macs = macsPerSample(shape);
+            std::printf("| %s | %s | %.0f | %.3g M | %.1f%% | %.3g M | %.2fx | %.1f%% |\n", kernel.name, shapeName(shape).c_str(),
+                        1e9 * kernel.lanes * kBatch / rate1, rate1 * 1e-6, peak1 > 0 ? 100.0 * rate1 * macs / peak1 : 0.0, rateN * 1e-6,
+                        rateN / rate1, peakN > 0 ? 100.0 * rateN * macs / peakN : 0.0);
         }
-        const double macs = macsPerSample(shape);
-        std::printf("| %s | %.0f | %.3g M | %.1f%% | %.3g M | %.2fx | %.1f%% |\n", shapeName(shape).c_str(),
-                    1e9 * kLockstepLanes * kBatch / rate1, rate1 * 1e-6, peak1 > 0 ? 100.0 * rate1 * macs / peak1 : 0.0, rateN * 1e-6,
-                    rateN / rate1, peakN > 0 ? 100.0 * rateN * macs / peakN : 0.0);
     }
     return 0;
 }

@@ -1,7 +1,9 @@
 // The lockstep training step (baker/nn/mlp_lockstep.h) against a plain scalar step of one network written here
 // from the formulas, bit for bit: every lane, whatever the other lanes do (different counts, resting lanes,
-// rates, penalties, losses), on the kernels this machine picks and on the plain lanes.
+// rates, penalties, losses), on every kernel this machine runs (plain 8 and 16 lanes, AVX2, AVX-512).
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -74,20 +76,20 @@ void referenceStep(const NetworkShape& s, std::vector<float>& p, std::vector<flo
     }
 }
 
-using StepFn = void (*)(LockstepNetworks&, const LockstepLane*, LossKind, LockstepWorkspace&);
-
-// Eight lanes trained together for a few steps against eight networks trained alone; returns how many parameters
-// (and moments) differed in their bits.
-size_t mismatches(const NetworkShape& shape, LossKind loss, StepFn step) {
+// The kernel's lanes trained together for a few steps against as many networks trained alone; returns how many
+// parameters (and moments) differed in their bits.
+size_t mismatches(const NetworkShape& shape, LossKind loss, const LockstepKernel& kernel) {
+    const int lanesN = kernel.lanes;
+    const size_t laneCount = static_cast<size_t>(lanesN);
     SplitMix64 rng(23);
     std::vector<float> samples(200 * kPackedFloats);
     for (size_t i = 0; i < samples.size(); ++i) {
         const int q = int(i % kPackedFloats);
         samples[i] = q < kPackedTarget ? 2.0f * rng.uniform() - 1.0f : q < kPackedWeight ? 3.0f * rng.uniform() : q < 15 ? rng.uniform() : 0.0f;
     }
-    LockstepNetworks nets(shape);
-    std::vector<std::vector<float>> p(kLockstepLanes), m(kLockstepLanes), v(kLockstepLanes);
-    for (int j = 0; j < kLockstepLanes; ++j) {
+    LockstepNetworks nets(shape, lanesN);
+    std::vector<std::vector<float>> p(laneCount), m(p), v(p);
+    for (int j = 0; j < lanesN; ++j) {
         Mlp mlp(shape);
         mlp.initialize(uint64_t(j) + 5, 0.5f);
         p[size_t(j)] = mlp.parameters();
@@ -96,13 +98,14 @@ size_t mismatches(const NetworkShape& shape, LossKind loss, StepFn step) {
         nets.setLane(j, p[size_t(j)]);
     }
     LockstepWorkspace ws;
-    int t[kLockstepLanes] = {};
+    int t[kMaxLockstepLanes] = {};
     for (int stepIndex = 0; stepIndex < 6; ++stepIndex) {
-        LockstepLane lanes[kLockstepLanes];
-        std::vector<std::vector<const float*>> rows(kLockstepLanes);
-        for (int j = 0; j < kLockstepLanes; ++j) {
-            // Lane 3 rests on even steps, lane 5 always; the others take 1 to 64 samples.
-            const int count = (j == 3 && stepIndex % 2 == 0) || j == 5 ? 0 : 1 + int(rng.below(64));
+        LockstepLane lanes[kMaxLockstepLanes];
+        std::vector<std::vector<const float*>> rows(laneCount);
+        for (int j = 0; j < lanesN; ++j) {
+            // Lanes 3 and 12 rest on even steps, lane 5 always; the others take 1 to 64 samples.
+            const bool rests = ((j == 3 || j == 12) && stepIndex % 2 == 0) || j == 5;
+            const int count = rests ? 0 : 1 + int(rng.below(64));
             for (int k = 0; k < count; ++k) rows[size_t(j)].push_back(&samples[size_t(rng.below(200)) * kPackedFloats]);
             LockstepLane& lane = lanes[j];
             lane.count = count;
@@ -116,12 +119,12 @@ size_t mismatches(const NetworkShape& shape, LossKind loss, StepFn step) {
                 referenceStep(shape, p[size_t(j)], m[size_t(j)], v[size_t(j)], rows[size_t(j)], lane.learningRate, lane.weightDecay,
                               lane.c1, lane.c2, loss);
         }
-        step(nets, lanes, loss, ws);
+        kernel.step(nets, lanes, loss, ws);
     }
     size_t bad = 0;
-    for (int j = 0; j < kLockstepLanes; ++j)
+    for (int j = 0; j < lanesN; ++j)
         for (size_t q = 0; q < p[size_t(j)].size(); ++q) {
-            const size_t at = q * kLockstepLanes + size_t(j);
+            const size_t at = q * laneCount + size_t(j);
             bad += std::memcmp(&nets.params[at], &p[size_t(j)][q], 4) != 0;
             bad += std::memcmp(&nets.m[at], &m[size_t(j)][q], 4) != 0;
             bad += std::memcmp(&nets.v[at], &v[size_t(j)][q], 4) != 0;
@@ -140,11 +143,35 @@ std::vector<NetworkShape> shapes() {
 }
 
 TEST(MlpLockstep, EveryLaneIsItsNetworkTrainedAloneBitForBit) {
+    const std::vector<LockstepKernel> kernels = lockstepKernels();
+    for (const LockstepKernel& k : kernels) std::printf("lockstep kernel %s (%d lanes)\n", k.name, k.lanes);
     for (const NetworkShape& s : shapes())
-        for (LossKind loss : {LossKind::RelativeL2, LossKind::L2}) {
-            EXPECT_EQ(mismatches(s, loss, lockstepTrainStep), 0u) << s.hidden.size() << " hidden layers, " << lossName(loss);
-            EXPECT_EQ(mismatches(s, loss, lockstep_plain::trainStep), 0u) << "plain lanes";
-        }
+        for (LossKind loss : {LossKind::RelativeL2, LossKind::L2})
+            for (const LockstepKernel& k : kernels)
+                EXPECT_EQ(mismatches(s, loss, k), 0u) << k.name << ", " << s.hidden.size() << " hidden layers, " << lossName(loss);
+}
+
+TEST(MlpLockstep, TheChosenKernelIsTheWidestThisCpuRuns) {
+    const std::vector<LockstepKernel>& kernels = lockstepKernels();
+    ASSERT_GE(kernels.size(), 2u);
+    EXPECT_STREQ(kernels[0].name, "plain");
+    EXPECT_STREQ(kernels[1].name, "plain16");
+    const char* forced = std::getenv("NRAD_TRAIN_KERNEL");
+    if (forced && *forced) GTEST_SKIP() << "NRAD_TRAIN_KERNEL=" << forced;
+    const char* widest = kernels.size() > 2 ? kernels.back().name : "plain";
+    EXPECT_STREQ(lockstepKernel().name, widest);
+#if defined(__x86_64__)
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f")) {
+        EXPECT_STREQ(lockstepKernel().name, "avx512");
+        EXPECT_EQ(lockstepKernel().lanes, 16);
+    }
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        EXPECT_STREQ(lockstepKernel(8).name, "avx2");
+    }
+#else
+    EXPECT_STREQ(lockstepKernel(8).name, "plain");
+#endif
 }
 
 }  // namespace
