@@ -113,8 +113,29 @@ struct Avx2 {
         }
         m[8] = _mm256_load_ps(ninth);
     }
+    // Eight RGBA fp32 pixels of alpha 1: a 4 x 8 transpose (128-bit lane L of px[q] is pixel 4 L + q), then whole
+    // vectors of two pixels where they are packed, else 16-byte pixels.
+    static void storeRgba(uint8_t* o, size_t stride, const F rgb[3]) {
+        const F a = _mm256_set1_ps(1.0f);
+        const F t0 = _mm256_unpacklo_ps(rgb[0], rgb[1]), t1 = _mm256_unpackhi_ps(rgb[0], rgb[1]);
+        const F t2 = _mm256_unpacklo_ps(rgb[2], a), t3 = _mm256_unpackhi_ps(rgb[2], a);
+        const F px[4] = {_mm256_shuffle_ps(t0, t2, 0x44), _mm256_shuffle_ps(t0, t2, 0xEE), _mm256_shuffle_ps(t1, t3, 0x44),
+                         _mm256_shuffle_ps(t1, t3, 0xEE)};
+        if (stride == 16) {
+            float* f = reinterpret_cast<float*>(o);
+            _mm256_storeu_ps(f, _mm256_permute2f128_ps(px[0], px[1], 0x20));  // pixels 0, 1
+            _mm256_storeu_ps(f + 8, _mm256_permute2f128_ps(px[2], px[3], 0x20));
+            _mm256_storeu_ps(f + 16, _mm256_permute2f128_ps(px[0], px[1], 0x31));
+            _mm256_storeu_ps(f + 24, _mm256_permute2f128_ps(px[2], px[3], 0x31));
+            return;
+        }
+        for (int q = 0; q < 4; ++q) {
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(q) * stride), _mm256_castps256_ps128(px[q]));
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(4 + q) * stride), _mm256_extractf128_ps(px[q], 1));
+        }
+    }
     // Eight RGBA fp16 pixels: the inverse transpose, then whole 8-byte pixels.
-    static constexpr bool kHalfRgbaStore = true;
+    static constexpr bool kRgbaStores = true;
     static void storeHalfRgba(uint8_t* o, size_t stride, const F rgb[3]) {
         const __m128i r = toHalf(rgb[0]), g = toHalf(rgb[1]), b = toHalf(rgb[2]), a = _mm_set1_epi16(0x3C00);
         const __m128i rgLo = _mm_unpacklo_epi16(r, g), rgHi = _mm_unpackhi_epi16(r, g);

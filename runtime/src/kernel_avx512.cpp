@@ -98,6 +98,18 @@ struct Avx512 {
     // row k: point 4 j + k) converted to fp32, a point's x y z w in each 128-bit lane as loadStrided3's rows; then
     // transpose4.
     static void loadStrided3Half(const uint8_t* s, size_t stride, F v[3]) {
+        if (stride == 8) {  // packed 8-byte points (x y z w): 128 bytes in two loads
+            const __m512i lo = _mm512_loadu_si512(s), hi = _mm512_loadu_si512(s + 64);
+            const F r[4] = {_mm512_cvtph_ps(_mm512_castsi512_si256(lo)), _mm512_cvtph_ps(_mm512_extracti64x4_epi64(lo, 1)),
+                            _mm512_cvtph_ps(_mm512_castsi512_si256(hi)), _mm512_cvtph_ps(_mm512_extracti64x4_epi64(hi, 1))};
+            // Lane j of r[k] holds point 4 k + j (transpose4 expects 4 j + k): transpose4 leaves point 4 k + j at
+            // element 4 j + k, and one permute a component puts the points in order.
+            F t[3];
+            transpose4(r, t);
+            const __m512i order = _mm512_setr_epi32(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15);
+            for (int k = 0; k < 3; ++k) v[k] = _mm512_permutexvar_ps(order, t[k]);
+            return;
+        }
         const size_t q = 4 * stride, q3 = 3 * q;
         auto point = [](const uint8_t* p) { return _mm_loadl_epi64(at<__m128i>(p)); };
         __m512i rows[2];  // rows 2 h and 2 h + 1 in the low and high halves of rows[h]
@@ -155,9 +167,34 @@ struct Avx512 {
         }
         m[8] = ninth;
     }
+    // Sixteen RGBA fp32 pixels of alpha 1: a 4 x 16 transpose (after the unpacks and shuffles, 128-bit lane L of
+    // px[q] is pixel 4 L + q), then whole vectors of four pixels where they are packed, else 16-byte pixels.
+    static void storeRgba(uint8_t* o, size_t stride, const F rgb[3]) {
+        const F a = _mm512_set1_ps(1.0f);
+        const F t0 = _mm512_unpacklo_ps(rgb[0], rgb[1]), t1 = _mm512_unpackhi_ps(rgb[0], rgb[1]);
+        const F t2 = _mm512_unpacklo_ps(rgb[2], a), t3 = _mm512_unpackhi_ps(rgb[2], a);
+        const F px[4] = {_mm512_shuffle_ps(t0, t2, 0x44), _mm512_shuffle_ps(t0, t2, 0xEE), _mm512_shuffle_ps(t1, t3, 0x44),
+                         _mm512_shuffle_ps(t1, t3, 0xEE)};
+        if (stride == 16) {
+            const F a0 = _mm512_shuffle_f32x4(px[0], px[1], _MM_SHUFFLE(2, 0, 2, 0)), a1 = _mm512_shuffle_f32x4(px[0], px[1], _MM_SHUFFLE(3, 1, 3, 1));
+            const F b0 = _mm512_shuffle_f32x4(px[2], px[3], _MM_SHUFFLE(2, 0, 2, 0)), b1 = _mm512_shuffle_f32x4(px[2], px[3], _MM_SHUFFLE(3, 1, 3, 1));
+            float* f = reinterpret_cast<float*>(o);
+            _mm512_storeu_ps(f, _mm512_shuffle_f32x4(a0, b0, _MM_SHUFFLE(2, 0, 2, 0)));  // pixels 0-3
+            _mm512_storeu_ps(f + 16, _mm512_shuffle_f32x4(a1, b1, _MM_SHUFFLE(2, 0, 2, 0)));
+            _mm512_storeu_ps(f + 32, _mm512_shuffle_f32x4(a0, b0, _MM_SHUFFLE(3, 1, 3, 1)));
+            _mm512_storeu_ps(f + 48, _mm512_shuffle_f32x4(a1, b1, _MM_SHUFFLE(3, 1, 3, 1)));
+            return;
+        }
+        for (int q = 0; q < 4; ++q) {
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(q) * stride), _mm512_castps512_ps128(px[q]));
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(4 + q) * stride), _mm512_extractf32x4_ps(px[q], 1));
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(8 + q) * stride), _mm512_extractf32x4_ps(px[q], 2));
+            _mm_storeu_ps(reinterpret_cast<float*>(o + size_t(12 + q) * stride), _mm512_extractf32x4_ps(px[q], 3));
+        }
+    }
     // Sixteen RGBA fp16 pixels: Avx2::storeHalfRgba's inverse transpose in each 128-bit lane of 256-bit vectors
     // (pixels 0-7 in the low lanes, 8-15 in the high), then whole 8-byte pixels.
-    static constexpr bool kHalfRgbaStore = true;
+    static constexpr bool kRgbaStores = true;
     static void storeHalfRgba(uint8_t* o, size_t stride, const F rgb[3]) {
         const __m256i r = toHalf(rgb[0]), g = toHalf(rgb[1]), b = toHalf(rgb[2]), a = _mm256_set1_epi16(0x3C00);
         const __m256i rgLo = _mm256_unpacklo_epi16(r, g), rgHi = _mm256_unpackhi_epi16(r, g);

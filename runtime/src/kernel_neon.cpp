@@ -90,7 +90,7 @@ struct Neon {
         vst1_u16(p, vreinterpret_u16_f16(vcvt_f16_f32(vminq_f32(v, vdupq_n_f32(65504.0f)))));
     }
     static constexpr bool kStridedLoads = false;  // G-buffers through simd_impl.h's exact per-point reads
-    static constexpr bool kHalfRgbaStore = false;
+    static constexpr bool kRgbaStores = false;
     static constexpr bool kSurfaceLoads = false;
 };
 

@@ -166,11 +166,26 @@ inline void writePixels(uint8_t* o, size_t stride, const T rows[3][V::W], T alph
 template <class V>
 inline void storePixels(const GBufferIo& g, size_t first, const typename V::F rgb[3]) {
     uint8_t* o = g.out + first * g.outStride;
-    if constexpr (V::kHalfRgbaStore) {
+    if constexpr (V::kRgbaStores) {
         if (g.outHalf && g.channels == 4) {
             V::storeHalfRgba(o, g.outStride, rgb);
             return;
         }
+        if (!g.outHalf && g.channels == 4) {
+            V::storeRgba(o, g.outStride, rgb);
+            return;
+        }
+    }
+    if (g.channels == 3 && g.outStride == (g.outHalf ? 6u : 12u)) {  // packed RGB: three interleaved vectors
+        typename V::F px[3];
+        V::interleave3(rgb, px);
+        for (int k = 0; k < 3; ++k) {
+            if (g.outHalf)
+                V::storeHalf(reinterpret_cast<uint16_t*>(o) + k * V::W, px[k]);
+            else
+                V::store(reinterpret_cast<float*>(o) + k * V::W, px[k]);
+        }
+        return;
     }
     // Pixel by pixel, copies of a constant size (a copy of the channel count's size was a call to memcpy per pixel).
     if (g.outHalf) {

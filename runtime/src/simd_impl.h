@@ -16,7 +16,8 @@
 //   and storeHalf (F -> W fp16 values, saturated at 65504 as format::floatToHalf does; the input is never NaN);
 //   kStridedLoads: whether it has loadStrided3 (three fp32 components of W points `stride` bytes apart, 16
 //   bytes read per point) and loadStrided3Half (three fp16 components, 8 bytes read per point);
-//   kHalfRgbaStore: whether it has storeHalfRgba (three F as W fp16 RGBA pixels of alpha 1, `stride` bytes apart);
+//   kRgbaStores: whether it has storeHalfRgba and storeRgba (three F as W fp16 or fp32 RGBA pixels of alpha 1,
+//   `stride` bytes apart);
 //   kSurfaceLoads: whether it has loadSurfaces (W NradSurfaces' nine floats, `stride` bytes apart, as nine F).
 //
 // The code is in four parts, included here in order: simd_network.h (networks), simd_blend.h (a batch's

@@ -284,14 +284,15 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                     {6, 12, 16, true, false, false},  // fp16 positions, fp32 vectors
                     {13, 7, 9, false, true, true},    // odd strides
                     {4, 2, 6, false, true, true},     // overlapping attributes (strides under their size)
+                    {8, 8, 8, true, true, true},      // fp16 in 8-byte records (AVX-512 reads them in whole vectors)
                 };
                 struct Output {
                     bool half;
                     int channels;
                     size_t stride;
                 };
-                const Output outputs[] = {{true, 4, 0},  {true, 4, 12},  {true, 3, 0},
-                                          {false, 3, 0}, {false, 4, 20}, {true, 3, 10}};
+                const Output outputs[] = {{true, 4, 0},   {true, 4, 12},  {true, 3, 0}, {false, 3, 0},
+                                          {false, 4, 0}, {false, 4, 20}, {true, 3, 10}};
                 for (const Input& in : inputs)
                     for (int mode = 0; mode < 4; ++mode) {  // unit vectors or not, eye or per-pixel directions
                         const bool unit = mode & 1, eyeMode = mode & 2;
