@@ -131,6 +131,9 @@ const std::vector<LockstepKernel>& lockstepKernels() {
         if (cpuHasAvx2() && __builtin_cpu_supports("fma")) out.push_back({"avx2", 8, lockstep_avx2::trainStep});
         if (__builtin_cpu_supports("avx512f")) out.push_back({"avx512", 16, lockstep_avx512::trainStep});
 #endif
+#if defined(__aarch64__) && !defined(NRAD_LOCKSTEP_PLAIN_ONLY)
+        out.push_back({"neon", 8, lockstep_neon::trainStep});
+#endif
         return out;
     }();
     return kernels;

@@ -84,10 +84,10 @@ struct LockstepKernel {
     LockstepStep step;
 };
 // The kernels this CPU can run, plain first: "plain" (8 lanes, std::fma), "plain16" (the same with 16 lanes),
-// "avx2" (AVX2 with FMA, 8 lanes), "avx512" (AVX-512F, 16 lanes).
+// "avx2" (AVX2 with FMA, 8 lanes), "avx512" (AVX-512F, 16 lanes), "neon" (AArch64, 8 lanes).
 const std::vector<LockstepKernel>& lockstepKernels();
 // The kernel to train with, of at most maxLanes lanes: the one the environment's NRAD_TRAIN_KERNEL names where this
-// CPU runs it and it fits, else the fastest that fits (avx512, avx2, plain).
+// CPU runs it and it fits, else the fastest that fits (avx512, avx2 or neon, plain).
 const LockstepKernel& lockstepKernel(int maxLanes = kMaxLockstepLanes);
 
 // The kernels of one instruction set.
@@ -99,6 +99,11 @@ namespace lockstep_avx2 {  // AVX2 with FMA, 8 lanes
 void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
 }
 namespace lockstep_avx512 {  // AVX-512F, 16 lanes
+void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
+}
+#endif
+#if defined(__aarch64__)
+namespace lockstep_neon {  // NEON, 8 lanes
 void trainStep(LockstepNetworks& nets, const LockstepLane* lanes, LossKind loss, LockstepWorkspace& ws);
 }
 #endif

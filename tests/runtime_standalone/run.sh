@@ -2,7 +2,8 @@
 # Builds and runs tests/runtime_standalone: the runtime's and the format's tests with the runtime alone.
 #   run.sh SOURCE_DIR SCRATCH_DIR native    the host's compiler and CPU
 #   run.sh SOURCE_DIR SCRATCH_DIR aarch64   cross-compiled with g++-aarch64-linux-gnu, run under qemu-aarch64
-#                                           (the NEON kernel); ./run.sh installs both
+#                                           (the NEON kernels: the runtime's, and the baker's lockstep
+#                                           training, nn_lockstep_tests); ./run.sh installs both
 set -euo pipefail
 src=$1 scratch=$2 target=${3:-native}
 rm -rf "$scratch"
@@ -26,6 +27,7 @@ fi
 if [ "$target" = aarch64 ]; then
   file "$scratch/build/runtime_standalone_tests" | grep -q "ARM aarch64" || { echo "not an aarch64 executable" >&2; exit 1; }
   qemu-aarch64 -L /usr/aarch64-linux-gnu "$scratch/build/runtime_standalone_tests"
+  qemu-aarch64 -L /usr/aarch64-linux-gnu "$scratch/build/nn_lockstep_tests"
 else
   "$scratch/build/runtime_standalone_tests"
 fi

@@ -169,6 +169,8 @@ TEST(MlpLockstep, TheChosenKernelIsTheWidestThisCpuRuns) {
     if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         EXPECT_STREQ(lockstepKernel(8).name, "avx2");
     }
+#elif defined(__aarch64__)
+    EXPECT_STREQ(lockstepKernel(8).name, "neon");
 #else
     EXPECT_STREQ(lockstepKernel(8).name, "plain");
 #endif
