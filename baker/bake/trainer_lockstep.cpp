@@ -1,9 +1,10 @@
 // Training the voxels' networks, many at once: every training (a voxel's network under one weight decay, from one
 // initialisation) is a job that runs in one lane of networks trained in lockstep (baker/nn/mlp_lockstep.h), eight
-// or sixteen to a register (the kernel's lanes); a lane whose job ends takes the next. Each job keeps its own schedule: its samples' order, its
-// learning rate and Adam's step count, its held-out error after every epoch, early stopping, re-initialisation
-// after a failed attempt and the constant fallback (trainer.h). A lane's arithmetic never meets another lane's, so
-// a job's result is the same whichever lane, group or thread runs it and whatever runs beside it.
+// or sixteen to a register (the kernel's lanes); a lane whose job ends takes the next. Each job keeps its own
+// schedule: its samples' order, its learning rate and Adam's step count, its held-out error after every epoch,
+// early stopping, re-initialisation after a failed attempt and the constant fallback (trainer.h). A lane's
+// arithmetic never meets another lane's, so a job's result is the same whichever lane, group, thread or kernel
+// runs it and whatever runs beside it.
 #include <algorithm>
 #include <atomic>
 #include <chrono>

@@ -8,7 +8,8 @@
 // One step (LockstepKernel::step) is a whole mini-batch step of each lane's network: forward, the regression loss's
 // gradient, backpropagation, the gradient summed over the batch, divided by its count, the L2 penalty, and Adam.
 //
-// The number of lanes is the kernel's: 8 for AVX2 and the plain lanes, 16 for AVX-512. Since a lane's result does
+// The number of lanes is the kernel's: 8 for AVX2, NEON and the plain lanes, 16 for AVX-512 (and the plain lanes'
+// 16, for tests). Since a lane's result does
 // not depend on its neighbours, it does not depend on how many there are either: every kernel gives the same
 // networks, and so the same assets.
 #pragma once

@@ -2,7 +2,8 @@
 // each in its own namespace NRAD_LOCKSTEP_KERNELS and compiled with -ffp-contract=off: the fused multiply-adds are
 // the ones written as fma(), nothing else fuses, so every instruction set gives the same bits.
 //
-// A lane type V (defined by the file that includes this one, in the same namespace) has W, V::splat(x),
+// A lane type V (defined by the file that includes this one, in the same namespace) has W, kGradInputs (the widest
+// block of weights' gradients it keeps in registers: 4, or 8 with 32 registers), V::splat(x),
 // V::load(p), V::store(p, v), V::transposeRows(rows, out) (out[q W + j] = rows[j][q] for q < kPackedFloats), and
 // + - * /, sqrt, fma (one rounding), whereAboveZero(p, v) (p > 0 ? v : 0, NaN gives 0), whereLess(a, b, v)
 // (a < b ? v : 0) and selectAboveZero(m, a, b) (m > 0 ? a : b), lane by lane.
@@ -19,9 +20,9 @@ namespace NRAD_LOCKSTEP_KERNELS {
 
 namespace {
 
-// Samples per pass of the forward and backward loops: as many independent chains of multiply-adds as two FMA pipes
-// of four cycles' latency keep busy (four left half of AVX-512's forward pass waiting on them), and few enough
-// accumulators for AVX2's sixteen registers.
+// Samples per pass of the forward and backward loops: eight independent chains of multiply-adds, as many as two FMA
+// pipes of four cycles' latency keep busy, and few enough accumulators for AVX2's sixteen registers (train_bench
+// measured no difference from four, on AVX2 or AVX-512).
 constexpr int kSampleBlock = 8;
 
 // The width of layer l (0: the inputs) and the stride of its activations per sample (layer 0: the packed rows).
