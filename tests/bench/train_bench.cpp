@@ -8,7 +8,7 @@
 // the peak (lane-FMAs per second of fma_peak.h at the widest vector width) is what issue 40's goal 1 asks
 // about: >= 30% on one core.
 //
-// Usage: train_bench [--steps 200000] [--repeat 3] [--threads 2] [--kernel plain|plain16|avx2|avx512]
+// Usage: train_bench [--steps 200000] [--repeat 3] [--threads 2] [--kernel plain|plain16|avx2|avx512|neon]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
