@@ -18,16 +18,8 @@ struct Lanes {
     static constexpr int W = N;
     static constexpr int kGradInputs = 4;
     float f[N];
-    static Lanes splat(float x) {
-        Lanes r;
-        for (float& f : r.f) f = x;
-        return r;
-    }
-    static Lanes load(const float* p) {
-        Lanes r;
-        for (int j = 0; j < N; ++j) r.f[j] = p[j];
-        return r;
-    }
+    static Lanes splat(float x) { return each([&](int) { return x; }); }
+    static Lanes load(const float* p) { return each([&](int j) { return p[j]; }); }
     static void store(float* p, Lanes a) {
         for (int j = 0; j < N; ++j) p[j] = a.f[j];
     }
@@ -35,33 +27,22 @@ struct Lanes {
         for (int q = 0; q < kPackedFloats; ++q)
             for (int j = 0; j < N; ++j) out[size_t(q) * N + size_t(j)] = rows[j][q];
     }
-    template <class Op>
-    friend Lanes lanewise(Lanes a, Lanes b, Op op) {
+    // The lanes of f(j), j = 0 .. N - 1.
+    template <class F>
+    static Lanes each(F f) {
         Lanes r;
-        for (int j = 0; j < N; ++j) r.f[j] = op(a.f[j], b.f[j]);
+        for (int j = 0; j < N; ++j) r.f[j] = f(j);
         return r;
     }
-    friend Lanes operator+(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x + y; }); }
-    friend Lanes operator-(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x - y; }); }
-    friend Lanes operator*(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x * y; }); }
-    friend Lanes operator/(Lanes a, Lanes b) { return lanewise(a, b, [](float x, float y) { return x / y; }); }
-    friend Lanes sqrt(Lanes a) { return lanewise(a, a, [](float x, float) { return std::sqrt(x); }); }
-    friend Lanes fma(Lanes a, Lanes b, Lanes c) {
-        Lanes r;
-        for (int j = 0; j < N; ++j) r.f[j] = std::fma(a.f[j], b.f[j], c.f[j]);
-        return r;
-    }
-    friend Lanes whereAboveZero(Lanes p, Lanes v) { return lanewise(p, v, [](float x, float y) { return x > 0.0f ? y : 0.0f; }); }
-    friend Lanes whereLess(Lanes a, Lanes b, Lanes v) {
-        Lanes r;
-        for (int j = 0; j < N; ++j) r.f[j] = a.f[j] < b.f[j] ? v.f[j] : 0.0f;
-        return r;
-    }
-    friend Lanes selectAboveZero(Lanes m, Lanes a, Lanes b) {
-        Lanes r;
-        for (int j = 0; j < N; ++j) r.f[j] = m.f[j] > 0.0f ? a.f[j] : b.f[j];
-        return r;
-    }
+    friend Lanes operator+(Lanes a, Lanes b) { return each([&](int j) { return a.f[j] + b.f[j]; }); }
+    friend Lanes operator-(Lanes a, Lanes b) { return each([&](int j) { return a.f[j] - b.f[j]; }); }
+    friend Lanes operator*(Lanes a, Lanes b) { return each([&](int j) { return a.f[j] * b.f[j]; }); }
+    friend Lanes operator/(Lanes a, Lanes b) { return each([&](int j) { return a.f[j] / b.f[j]; }); }
+    friend Lanes sqrt(Lanes a) { return each([&](int j) { return std::sqrt(a.f[j]); }); }
+    friend Lanes fma(Lanes a, Lanes b, Lanes c) { return each([&](int j) { return std::fma(a.f[j], b.f[j], c.f[j]); }); }
+    friend Lanes whereAboveZero(Lanes p, Lanes v) { return each([&](int j) { return p.f[j] > 0.0f ? v.f[j] : 0.0f; }); }
+    friend Lanes whereLess(Lanes a, Lanes b, Lanes v) { return each([&](int j) { return a.f[j] < b.f[j] ? v.f[j] : 0.0f; }); }
+    friend Lanes selectAboveZero(Lanes m, Lanes a, Lanes b) { return each([&](int j) { return m.f[j] > 0.0f ? a.f[j] : b.f[j]; }); }
 };
 
 }  // namespace
