@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -41,12 +42,18 @@ struct ShFitStats {
 // Least squares: minimise sum_s |L_grid(x_s, wo_s) - L_s|^2 + ridge * trace(A^T A) / K * |c|^2 by conjugate
 // gradients on the normal equations (K unknowns per channel, the three channels side by side), preconditioned
 // by each probe's 9 x 9 block of them (block Jacobi); the ridge keeps probes that no sample reaches at zero.
-// A channel stops at a relative residual of 1e-7, or once the objective falls by less than 1e-3 of itself
+// A channel stops at a relative residual of 1e-7, or once the objective falls by less than 1e-2 of itself
 // over 10 iterations (sh_probes.cpp: what that leaves is invisible in the image). Coefficients are then
 // rounded to fp16. Runs in parallel (TBB), every sum in a fixed order: the same bytes whatever the number of
-// threads. `progress` gets the fraction done (the slowest channel's way to its stop, log scale), rising.
+// threads and whichever kernel. `progress` gets the fraction done (the slowest channel's way to its stop,
+// log scale), rising. `kernel`: one of shFitKernels(), or empty for the first (std::invalid_argument if the
+// CPU has no such kernel).
 ShProbeGrid fitShProbeGrid(const std::vector<TrainingSample>& samples, const glm::vec3& lower, const glm::vec3& upper,
                            const glm::uvec3& dims, ShFitStats* stats = nullptr, double ridge = 1e-4,
-                           const std::function<void(double)>& progress = {});
+                           const std::function<void(double)>& progress = {}, const std::string& kernel = {});
+
+// The fit's kernels on this CPU, widest first ("avx512", "avx2", then "plain", which every CPU has): the same
+// code compiled for each ISA.
+std::vector<std::string> shFitKernels();
 
 }  // namespace nrad

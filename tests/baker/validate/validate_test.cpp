@@ -456,6 +456,29 @@ TEST(ShProbes, FitIsTheSameForAnyThreadCountAndReportsRisingProgress) {
     EXPECT_EQ(none.iterations, 0);
 }
 
+TEST(ShProbes, EveryFitKernelGivesThePlainFitsBits) {
+    // The fit compiled per ISA: the same bits as the plain one on every kernel the CPU has (the relative
+    // residual, a double, shows any difference in the unknowns before the fp16 rounding hides it).
+    const glm::vec3 lower(-3, 0, 1), upper(5, 4, 6);
+    const glm::uvec3 dims(9, 8, 7);  // odd and even counts of cells per axis
+    const std::vector<TrainingSample> samples = randomFieldSamples(lower, upper, 9000, 6);
+    const std::vector<std::string> kernels = shFitKernels();
+    ASSERT_FALSE(kernels.empty());
+    EXPECT_EQ(kernels.back(), "plain");
+    ShFitStats plain;
+    const ShProbeGrid reference = fitShProbeGrid(samples, lower, upper, dims, &plain, 1e-4, {}, "plain");
+    EXPECT_GT(plain.iterations, 1);
+    for (const std::string& kernel : kernels) {
+        ShFitStats st;
+        const ShProbeGrid g = fitShProbeGrid(samples, lower, upper, dims, &st, 1e-4, {}, kernel);
+        EXPECT_EQ(std::memcmp(g.coeffs.data(), reference.coeffs.data(), g.coeffs.size() * sizeof(float)), 0) << kernel;
+        EXPECT_EQ(st.iterations, plain.iterations) << kernel;
+        EXPECT_EQ(st.relativeResidual, plain.relativeResidual) << kernel;
+        EXPECT_EQ(st.trainRelMse, plain.trainRelMse) << kernel;
+    }
+    EXPECT_THROW(fitShProbeGrid(samples, lower, upper, dims, nullptr, 1e-4, {}, "sse9"), std::invalid_argument);
+}
+
 TEST(Validate, ReferenceKeyFollowsWhatTheImageDependsOn) {
     // The lit plane under a sun and a sky. Whether the engine draws the sun (--runtime-direct) changes what an
     // asset holds, not the path-traced reference: the key stays. Everything the image depends on moves it.
