@@ -133,7 +133,7 @@ namespace {
 namespace sh_fit_plain {
 #include "baker/validate/sh_fit_impl.h"
 }  // namespace sh_fit_plain
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)  // (GCC's target pragmas; elsewhere the plain fit)
 #define NRAD_SH_FIT_X86 1
 #pragma GCC push_options
 #pragma GCC target("avx2")
