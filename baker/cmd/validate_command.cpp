@@ -100,10 +100,12 @@ void printHeadline(const ValidateOptions& o, const ValidationResult& r) {
         std::printf("  what the eye sees: SSIM %.4f%s at the viewer's exposure (%+.1f stops)\n", n.metrics.ssim,
                     b ? (" [" + fmtG(sh->metrics.ssim) + "]").c_str() : "", n.metrics.ssimExposure);
         std::printf("  what the eye sees (%zu surface pixels): relMSE %.3g%s; %dx%d-pixel blocks (%zu): luminance error rms %.3g, "
-                    "worst %.3g%s%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
+                    "worst %.3g%s%s%s; tint rms %.3g, worst %.3g (chroma %.3g, reference %.3g); steps at cell faces (%zu): rms %.3g, "
                     "worst %.3g\n",
                     n.surfaces.pixels, n.surfaces.relMse, b ? (" [" + fmtG(sh->surfaces.relMse) + "]").c_str() : "", n.blocks.blockSize,
                     n.blocks.blockSize, n.blocks.blocks, n.blocks.rms, n.blocks.worst,
+                    n.blocks.worstX >= 0 ? (" (" + std::string(n.blocks.worstSigned < 0.0 ? "darker" : "brighter") + ", at pixel " +
+                                            std::to_string(n.blocks.worstX) + "," + std::to_string(n.blocks.worstY) + ")").c_str() : "",
                     b ? (" [" + fmtG(sh->blocks.rms) + ", " + fmtG(sh->blocks.worst) + "]").c_str() : "",
                     r.referenceBlockNoise >= 0.0 ? (" (the reference's own noise: about " + fmtG(r.referenceBlockNoise) + " rms)").c_str() : "", n.blocks.tintRms,
                     n.blocks.tintWorst, n.blocks.chroma, n.blocks.referenceChroma, n.steps.faces, n.steps.rms, n.steps.worst);

@@ -286,7 +286,12 @@ BlockFigure blockFigure(const Image& image, const Image& reference, const std::v
             ++f.blocks;
             const double e = (lx - lr) / lr;
             sum2 += e * e;
-            f.worst = std::max(f.worst, std::abs(e));
+            if (std::abs(e) > f.worst || f.worstX < 0) {
+                f.worst = std::abs(e);
+                f.worstSigned = e;
+                f.worstX = bx;
+                f.worstY = by;
+            }
             const double mx = (x.x + x.y + x.z) / 3.0, mr = (r.x + r.y + r.z) / 3.0;
             double tint = 0.0;
             for (int c = 0; c < 3; ++c) tint = std::max(tint, std::abs((mx > 0.0 ? x[c] / mx : 1.0) - r[c] / mr));

@@ -84,6 +84,9 @@ struct BlockFigure {
     int blockSize = 0;
     size_t blocks = 0;
     double rms = 0.0, worst = 0.0;  // of the luminance's relative error over the blocks
+    // The worst block: its top-left pixel (-1 without blocks) and its signed error (< 0: the image darker).
+    int worstX = -1, worstY = -1;
+    double worstSigned = 0.0;
     double tintRms = 0.0, tintWorst = 0.0;
     // Largest (max - min) / mean of a block's mean RGB: the image's and the reference's (a grey scene's
     // reference is 0 up to its noise).

@@ -146,6 +146,18 @@ TEST(Metrics, BlockFigureSeesABlockBiasAndATintThatRelMseCallsSmall) {
     BlockFigure bright = blockFigure(image, reference, mask, 16);
     EXPECT_NEAR(bright.worst, 0.2, 1e-6);
     EXPECT_NEAR(bright.rms, 0.2 / std::sqrt(15.0), 1e-6);
+    EXPECT_EQ(bright.worstX, 32);  // where it is, and brighter
+    EXPECT_EQ(bright.worstY, 16);
+    EXPECT_NEAR(bright.worstSigned, 0.2, 1e-6);
+    for (int y = 48; y < 64; ++y)
+        for (int x = 0; x < 16; ++x) image.at(x, y) *= 0.7f;
+    BlockFigure darker = blockFigure(image, reference, mask, 16);
+    EXPECT_EQ(darker.worstX, 0);
+    EXPECT_EQ(darker.worstY, 48);
+    EXPECT_NEAR(darker.worstSigned, -0.3, 1e-6);
+    image = reference;
+    for (int y = 16; y < 32; ++y)
+        for (int x = 32; x < 48; ++x) image.at(x, y) *= 1.2f;
     EXPECT_NEAR(bright.tintWorst, 0.0, 1e-6);  // brighter, not tinted
     // One block tinted: red +30%, blue -30%, its luminance nearly the same. c = rgb / mean: (1.3, 1, 0.7) -> tint 0.3.
     image = reference;
