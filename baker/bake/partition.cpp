@@ -104,6 +104,7 @@ struct BuildCell {
     uint32_t bestAxis = 0, bestSplit = 0;
     double bestGain = 0.0;
     bool bestMakesNetwork = false;
+    bool hard = false;  // split at a hard plane (PartitionSettings::hardGap)
 };
 
 struct Candidate {
@@ -310,8 +311,32 @@ private:
         hi.box.lo[c.bestAxis] = c.bestSplit;
         lo.depth = hi.depth = c.depth + 1;
         lo.extra = hi.extra = buildingGrid_ ? 0 : c.extra + 1;
-        for (uint32_t i : c.samples)
-            (t_[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
+        const bool mayBeHard = settings_.hardGap > 0.0f && !buildingGrid_;
+        if (mayBeHard) {
+            // Every plane between the last sample below and the first above splits the samples alike: the one
+            // nearest the middle of that gap (a wall's inside), so that the plane clears both faces.
+            float below = -std::numeric_limits<float>::infinity(), above = std::numeric_limits<float>::infinity();
+            for (uint32_t i : c.samples) {
+                const float t = t_[3 * size_t(i) + c.bestAxis];
+                if (t < float(c.bestSplit)) below = std::max(below, t);
+                else above = std::min(above, t);
+            }
+            if (std::isfinite(below) && std::isfinite(above)) {
+                const float middle = std::floor(0.5f * (below + above) + 0.5f);
+                if (middle > below && middle <= above && middle > float(c.box.lo[c.bestAxis]) && middle < float(c.box.hi[c.bestAxis])) {
+                    c.bestSplit = uint32_t(middle);
+                    lo.box.hi[c.bestAxis] = c.bestSplit;
+                    hi.box.lo[c.bestAxis] = c.bestSplit;
+                }
+            }
+        }
+        float nearest = std::numeric_limits<float>::infinity();
+        for (uint32_t i : c.samples) {
+            const float t = t_[3 * size_t(i) + c.bestAxis];
+            nearest = std::min(nearest, std::abs(t - float(c.bestSplit)));
+            (t < float(c.bestSplit) ? lo : hi).samples.push_back(i);
+        }
+        c.hard = mayBeHard && nearest >= settings_.hardGap;
         std::vector<uint32_t>().swap(c.samples);
         c.axis = c.bestAxis;
         c.split = c.bestSplit;
@@ -401,7 +426,7 @@ private:
         }
         const uint32_t child = uint32_t(out_.tree.size());
         out_.tree.resize(out_.tree.size() + 2);
-        out_.tree[at] = {c.axis, c.split, child};
+        out_.tree[at] = {c.axis, c.split, child, c.hard};
         emit(size_t(c.lower), child);
         emit(size_t(c.upper), child + 1);
     }
@@ -437,6 +462,7 @@ AdaptivePartition splitWalls(const format::Grid& grid, const std::vector<Trainin
     ps.minResidualShare = settings.minResidualShare;
     ps.gridRefine = refine;
     ps.maxExtraDepth = settings.maxSplitsPerCell;
+    ps.hardGap = settings.hardGap;
     format::Topology any;  // bytes are not limited here
     return refinePartition(lattice, samples, learned, any, ps, MetadataReserve{});
 }

@@ -39,6 +39,11 @@ struct PartitionSettings {
     // under a grid cell.
     uint32_t gridRefine = 0;
     uint32_t maxExtraDepth = format::kMaxTreeDepth;
+    // > 0: a split made after the grid (gridRefine) whose plane has no sample of its cell within this many lattice
+    // voxels is hard (format::TreeNode::hard): it lies in a gap between surfaces, a wall's inside, and no
+    // blending band crosses it (a band there had shaded the dark room's floor along the wall with the lit room's
+    // network: docs/design.md). 0: none.
+    float hardGap = 0.0f;
 };
 
 // The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).
@@ -95,6 +100,8 @@ struct WallSplitSettings {
     double minResidualShare = 0.3;  // ... and this share of the cell's residual at least
     uint32_t maxSplitsPerCell = 2;  // tree levels under a grid cell
     uint32_t minSideSamples = 256;
+    // PartitionSettings::hardGap of the splits at walls, in lattice voxels (wallRefine's: 1/256 of a grid cell).
+    float hardGap = 0.5f;
 };
 // The lattice refinement for a grid: the largest power of two (at most 256) keeping every axis within kMaxGridDim.
 uint32_t wallRefine(const format::Grid& grid);

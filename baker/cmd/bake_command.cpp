@@ -488,9 +488,12 @@ void printRoundsAndPartition(const BakeSettings& s, const BakeResult& r, size_t 
                     ap.rootResidual);
     } else if (ap.leafCount > 0) {
         const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
-        std::printf("partition: the %ux%ux%u grid split at walls where a cell holds a lit and a dark side (%llu splits: %u leaves, "
-                    "%u with surface, on a %ux%ux%u lattice; --no-wall-splits keeps the cells whole)\n",
-                    s.grid.x, s.grid.y, s.grid.z, (unsigned long long)(ap.leafCount - cells), ap.leafCount, ap.networks,
+        size_t hard = 0;
+        for (const format::TreeNode& n : ap.tree) hard += n.hard ? 1 : 0;
+        std::printf("partition: the %ux%ux%u grid split at walls where a cell holds a lit and a dark side (%llu splits, %zu inside a "
+                    "wall with no blending across: %u leaves, %u with surface, on a %ux%ux%u lattice; --no-wall-splits keeps the "
+                    "cells whole)\n",
+                    s.grid.x, s.grid.y, s.grid.z, (unsigned long long)(ap.leafCount - cells), hard, ap.leafCount, ap.networks,
                     r.asset.grid.dims[0], r.asset.grid.dims[1], r.asset.grid.dims[2]);
     }
 }

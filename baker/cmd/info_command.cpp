@@ -47,9 +47,11 @@ int runInfo(const std::string& path) {
             smallest = std::min(smallest, v);
             largest = std::max(largest, v);
         }
-        std::printf("partition: kd-tree of %u leaves over the grid's lattice (%zu nodes, %zu bytes), %zu with a network; "
-                    "leaves of %llu to %llu lattice voxels\n",
-                    leaves, a.tree.size(), 4 + 8 * a.tree.size(), a.voxels.size(), (unsigned long long)smallest,
+        size_t hard = 0;
+        for (const format::TreeNode& n : a.tree) hard += n.hard ? 1 : 0;
+        std::printf("partition: kd-tree of %u leaves over the grid's lattice (%zu nodes, %zu bytes, %zu hard planes with no "
+                    "blending across), %zu with a network; leaves of %llu to %llu lattice voxels\n",
+                    leaves, a.tree.size(), 4 + 8 * a.tree.size(), hard, a.voxels.size(), (unsigned long long)smallest,
                     (unsigned long long)largest);
     }
     std::printf("network: %u-%s%u, ReLU, output %s, %llu parameters, weights %s (%llu bytes)\n", t.inputs, widths.c_str(),

@@ -193,6 +193,47 @@ TEST(Tree, RoundTripsAsVersionTwoPointTwo) {
     EXPECT_EQ(out.cellCount(), leaves);
 }
 
+// A hard plane (TreeNode::hard, version 2.3): the flag round-trips in the child word's top bit, its node has
+// no band, so points beside it have the one leaf on their side; a leaf marked hard is refused.
+TEST(Tree, HardPlanesRoundTripAsTwoPointThreeAndNoBandCrossesThem) {
+    const Grid g = latticeGrid(4, 4, 4);
+    // The root cuts x at 2 (hard), its lower child cuts y at 2 (soft): three leaves.
+    std::vector<TreeNode> tree = {{0, 2, 1, true}, {1, 2, 3}, {kTreeLeaf, 0, 2}, {kTreeLeaf, 0, 0}, {kTreeLeaf, 0, 1}};
+    uint32_t leaves = 0;
+    ASSERT_TRUE(validateTree(g.dims, tree, leaves));
+    ASSERT_EQ(leaves, 3u);
+    const std::vector<uint8_t> b = treeAssetBytes(tree, leaves);
+    EXPECT_EQ(b[10], 3);  // minor version
+    Asset out;
+    ASSERT_EQ(decode(b.data(), b.size(), out), DecodeStatus::Ok);
+    ASSERT_EQ(out.tree.size(), tree.size());
+    for (size_t i = 0; i < tree.size(); ++i) {
+        EXPECT_EQ(out.tree[i].child, tree[i].child);
+        EXPECT_EQ(out.tree[i].hard, tree[i].hard);
+    }
+    const float band = 0.25f;
+    const std::vector<float> widths = eval::treeBandWidths(g.dims, out.tree, band);
+    EXPECT_EQ(widths[0], 0.0f);
+    EXPECT_EQ(widths[1], band * 2.0f);  // the leaves beside y = 2 are 2 wide
+    const eval::Partition kd(g, band, out.tree, leaves);
+    auto supportsAt = [&](float tx, float ty) {
+        const float p[3] = {g.lower[0] + tx / eval::gridFactor(g, 0), g.lower[1] + ty / eval::gridFactor(g, 1),
+                            g.lower[2] + 1.0f / eval::gridFactor(g, 2)};
+        eval::Support s[eval::kMaxSupports];
+        return kd.supports(p, s);
+    };
+    EXPECT_EQ(supportsAt(1.95f, 1.0f), 1);  // beside the hard plane, on either side: one leaf
+    EXPECT_EQ(supportsAt(2.05f, 1.0f), 1);
+    EXPECT_EQ(supportsAt(1.0f, 1.95f), 2);  // beside the soft one: both
+    // The same tree without the flag: 2.2, and a band at the root.
+    tree[0].hard = false;
+    EXPECT_EQ(treeAssetBytes(tree, leaves)[10], 2);
+    EXPECT_EQ(eval::treeBandWidths(g.dims, tree, band)[0], band * 2.0f);
+    // A leaf cannot be hard.
+    tree[2].hard = true;
+    EXPECT_FALSE(validateTree(g.dims, tree, leaves));
+}
+
 // A partition is built from a valid tree with its true leaf count (the decoder validates an asset's; the
 // baker builds its own valid): anything else is a bug, stopped where it would have read the wrong leaves.
 TEST(TreeDeathTest, PartitionStopsAtAnInvalidTreeOrLeafCount) {

@@ -40,7 +40,7 @@ void fuzzTree(const uint8_t* data, size_t size) {
         uint32_t word, child;
         std::memcpy(&word, data + at, 4);
         std::memcpy(&child, data + at + 4, 4);
-        a.tree.push_back({word & 3u, word >> 2, child});
+        a.tree.push_back({word & 3u, word >> 2, child & ~nrad::format::kTreeHardBit, (child & nrad::format::kTreeHardBit) != 0});
     }
     a.voxels = {{0, 1.0f}};
     a.weights.assign(a.topology.parameterCount(), 0.25f);

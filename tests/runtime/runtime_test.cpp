@@ -171,9 +171,12 @@ TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
             EXPECT_EQ(fa, fb);
             EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << "kernel " << k << " band " << band;
         }
-        // A random tree over a finer lattice of the same box.
+        // A random tree over a finer lattice of the same box; again with every third node hard where inner (no band
+        // across its plane: format 2.3).
+        for (uint32_t hardEvery : {0u, 3u}) {
+        SCOPED_TRACE("hard every " + std::to_string(hardEvery));
         format::Asset adaptive = grid;
-        ASSERT_FALSE(test::makeRandomTreeAsset(adaptive, 16, 90, 8, 3, 1).empty());
+        ASSERT_FALSE(test::makeRandomTreeAsset(adaptive, 16, 90, 8, 3, 1, hardEvery).empty());
         const std::vector<uint8_t> ab = format::encode(adaptive);
         nrad::Asset aa;
         ASSERT_EQ(aa.loadFromMemory(ab.data(), ab.size()), NRAD_OK);
@@ -193,6 +196,7 @@ TEST(Runtime, TreeAssetsMatchTheGridAndAPlainForwardPass) {
                     ASSERT_NEAR(rgb[3 * i + size_t(c)], ref[c], 2e-5f * std::max(1.0f, std::abs(ref[c]))) << "kernel " << k << " point " << i;
             }
         }
+        }  // hardEvery
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
     rt::testing::setMaxRectCells(rt::LocateTree::kMaxRectCells);

@@ -76,12 +76,14 @@ inline std::vector<format::TreeNode> randomTree(const uint32_t dims[3], uint32_t
 
 // `a` made a kd-tree asset over a dims^3 lattice of its box: randomTree(leaves, seed), a network on every leaf
 // but each `skip`-th from `offset` (skip 0: every leaf), scales 0.5 + 0.01 leaf, fp16-exact weights in
-// [-0.6, 0.6] from `seed`. Returns the leaves' boxes (empty if the tree were invalid, which randomTree's never is).
+// [-0.6, 0.6] from `seed`, every hardEvery-th inner node hard (0: none). Returns the leaves' boxes (empty if the tree were invalid, which randomTree's never is).
 inline std::vector<format::TreeBox> makeRandomTreeAsset(format::Asset& a, uint32_t dims, uint32_t leaves, uint32_t seed,
-                                                        uint32_t skip = 0, uint32_t offset = 0) {
+                                                        uint32_t skip = 0, uint32_t offset = 0, uint32_t hardEvery = 0) {
     for (int k = 0; k < 3; ++k) a.grid.dims[k] = dims;
     a.header.flags |= format::kFlagTree;
     a.tree = randomTree(a.grid.dims, leaves, seed);
+    for (size_t i = 0; i < a.tree.size(); ++i)  // hardEvery > 0: every hardEvery-th node, if inner, hard (no band)
+        a.tree[i].hard = hardEvery > 0 && i % hardEvery == 0 && a.tree[i].axis != format::kTreeLeaf;
     uint32_t count = 0;
     std::vector<format::TreeBox> boxes;
     if (!format::validateTree(a.grid.dims, a.tree, count, &boxes)) return {};

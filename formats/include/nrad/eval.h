@@ -167,7 +167,8 @@ inline int keepOccupied(Support* s, int count, Occupied&& occupied) {
 
 // A point's leaf: descend from the root, taking the upper child where the grid coordinate t >= split (a point
 // on a plane belongs to the cell above it, as with voxels). Blending at a node's plane uses the half-width
-// band x (the smallest extent, along the node's axis, of the leaves below the node that touch the plane), in
+// band x (the smallest extent, along the node's axis, of the leaves below the node that touch the plane; 0 at a
+// hard node's plane, format::TreeNode::hard), in
 // lattice voxels: every leaf's bands are at most band x its own extent, so (band <= 1/2) the bands of a leaf's
 // opposite faces never overlap and its position input stays within 1 + 2 band, as on the grid. Where a point
 // lies within a node's half-width w of its plane (|t - split| < w) both children shade it, the upper one
@@ -208,7 +209,7 @@ inline std::vector<float> treeBandWidths(const uint32_t dims[3], const std::vect
     for (int k = 0; k < 3; ++k) root.hi[k] = dims[k];
     Walk{nodes, smallest, path}(0, root);
     for (size_t i = 0; i < nodes.size(); ++i)
-        if (nodes[i].axis != format::kTreeLeaf) width[i] = band * float(smallest[i]);
+        if (nodes[i].axis != format::kTreeLeaf && !nodes[i].hard) width[i] = band * float(smallest[i]);
     return width;
 }
 

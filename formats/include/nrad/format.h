@@ -21,8 +21,8 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 2;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
-                                       // 2.2: the kd-tree partition (TREE)
+constexpr uint16_t kVersionMinor = 3;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
+                                       // 2.2: the kd-tree partition (TREE), 2.3: planes no band crosses (TreeNode::hard)
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
@@ -127,7 +127,8 @@ struct VoxelEntry {
     float scale = 1.0f;
 };
 
-// TREE (with kFlagTree): u32 nodeCount, then nodeCount records of 8 bytes: u32 axis | split << 2, u32 child.
+// TREE (with kFlagTree): u32 nodeCount, then nodeCount records of 8 bytes: u32 axis | split << 2, u32 child |
+// hard << 31 (hard: an internal node's plane no blending band crosses, version 2.3; a 2.2 reader refuses it).
 // Node 0 is the root and covers the whole lattice [0, dims[0]) x [0, dims[1]) x [0, dims[2]) (the grid's
 // voxels as the unit). An internal node (axis 0, 1, 2) cuts its box with the plane at lattice coordinate
 // `split` of that axis, strictly inside the box; its lower child is node `child`, the upper one child + 1,
@@ -136,10 +137,14 @@ struct VoxelEntry {
 // root, no leaf lies deeper than kMaxTreeDepth: the leaves tile the lattice without overlap. A uniform grid is
 // the tree of decode's uniformTree(): its leaf indices are the voxels' linear indices.
 constexpr uint32_t kTreeLeaf = 3;
+constexpr uint32_t kTreeHardBit = 1u << 31;  // in the child word
 struct TreeNode {
     uint32_t axis = kTreeLeaf;
     uint32_t split = 0;
     uint32_t child = 0;
+    // An internal node whose plane separates what light does not cross (a wall the bake found between two
+    // rooms): no blending band across it (nrad/eval.h treeBandWidths gives it width 0).
+    bool hard = false;
 };
 
 // A leaf's (or node's) box on the lattice: [lo, hi) per axis, in voxels of the grid.
@@ -296,7 +301,7 @@ inline bool validateTree(const uint32_t dims[3], const std::vector<TreeNode>& no
         ++reached;
         const TreeNode& n = nodes[it.node];
         if (n.axis == kTreeLeaf) {
-            if (n.split != 0 || n.child != leafCount) return false;  // leaves numbered in depth-first order
+            if (n.split != 0 || n.child != leafCount || n.hard) return false;  // leaves numbered in depth-first order
             ++leafCount;
             if (boxes) boxes->push_back(it.box);
             continue;
@@ -491,7 +496,8 @@ inline DecodeStatus decodeTree(SectionSpan tree, uint32_t flags, const Grid& g, 
     nodes.resize(count);
     for (uint32_t i = 0; i < count; ++i) {
         const uint32_t word = rd32(tree.at + 4 + 8 * uint64_t(i));
-        nodes[i] = {word & 3u, word >> 2, rd32(tree.at + 8 + 8 * uint64_t(i))};
+        const uint32_t child = rd32(tree.at + 8 + 8 * uint64_t(i));
+        nodes[i] = {word & 3u, word >> 2, child & ~kTreeHardBit, (child & kTreeHardBit) != 0};
     }
     if (!validateTree(g.dims, nodes, leafCount)) return DecodeStatus::BadTree;
     return DecodeStatus::Ok;
@@ -643,7 +649,7 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
         wr32(s, uint32_t(a.tree.size()));
         for (const TreeNode& n : a.tree) {
             wr32(s, n.axis | (n.split << 2));
-            wr32(s, n.child);
+            wr32(s, n.child | (n.hard ? kTreeHardBit : 0u));
         }
         sections.push_back(std::move(s));
         types.push_back(kSectionTree);
@@ -658,7 +664,10 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     out[8] = uint8_t(kVersionMajor);
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
-    const uint16_t minor = (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
+    bool hard = false;
+    if (a.header.flags & kFlagTree)
+        for (const TreeNode& n : a.tree) hard = hard || n.hard;
+    const uint16_t minor = hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);

@@ -197,6 +197,16 @@ TEST(Walls, AGridCellIsSplitInsideAThinWallBetweenALitAndADarkSide) {
     EXPECT_LE(plane, 0.42f);
     // Every sample in the leaf on its side of the wall.
     for (size_t i = 0; i < samples.size(); ++i) EXPECT_EQ(ap.leafOfSample[i], samples[i].position.x < 0.41f ? 0u : 1u) << i;
+    // The plane lies in the wall, 5 lattice voxels from any surface: hard, no band across it.
+    EXPECT_TRUE(ap.tree[0].hard);
+    // The same step of light on a floor that runs on through the plane (a shadow's edge, no wall): split, but soft.
+    const std::vector<TrainingSample> floor = floorSamples([](float x) { return x < 0.41f ? 1.0f : 0.03f; }, 2.0f, 2.0f);
+    const AdaptivePartition edge = splitWalls(g, floor, learnedOf(floor), WallSplitSettings{});
+    ASSERT_EQ(edge.leafCount, 2u);
+    EXPECT_FALSE(edge.tree[0].hard);
+    WallSplitSettings soft;
+    soft.hardGap = 0.0f;
+    EXPECT_FALSE(splitWalls(g, samples, learnedOf(samples), soft).tree[0].hard);
     // Off: the grid stays whole.
     WallSplitSettings off;
     off.minGainPerSample = 1e9;
