@@ -314,7 +314,8 @@ private:
         const bool mayBeHard = settings_.hardGap > 0.0f && !buildingGrid_;
         if (mayBeHard) {
             // Every plane between the last sample below and the first above splits the samples alike: the one
-            // nearest the middle of that gap (a wall's inside), so that the plane clears both faces.
+            // nearest the middle of that gap (a wall's inside), so that the plane clears both faces; hard where
+            // both are hardGap away or more.
             float below = -std::numeric_limits<float>::infinity(), above = std::numeric_limits<float>::infinity();
             for (uint32_t i : c.samples) {
                 const float t = t_[3 * size_t(i) + c.bestAxis];
@@ -329,14 +330,10 @@ private:
                     hi.box.lo[c.bestAxis] = c.bestSplit;
                 }
             }
+            c.hard = std::min(float(c.bestSplit) - below, above - float(c.bestSplit)) >= settings_.hardGap;
         }
-        float nearest = std::numeric_limits<float>::infinity();
-        for (uint32_t i : c.samples) {
-            const float t = t_[3 * size_t(i) + c.bestAxis];
-            nearest = std::min(nearest, std::abs(t - float(c.bestSplit)));
-            (t < float(c.bestSplit) ? lo : hi).samples.push_back(i);
-        }
-        c.hard = mayBeHard && nearest >= settings_.hardGap;
+        for (uint32_t i : c.samples)
+            (t_[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
         std::vector<uint32_t>().swap(c.samples);
         c.axis = c.bestAxis;
         c.split = c.bestSplit;

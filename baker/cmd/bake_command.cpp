@@ -488,8 +488,7 @@ void printRoundsAndPartition(const BakeSettings& s, const BakeResult& r, size_t 
                     ap.rootResidual);
     } else if (ap.leafCount > 0) {
         const uint64_t cells = uint64_t(s.grid.x) * s.grid.y * s.grid.z;
-        size_t hard = 0;
-        for (const format::TreeNode& n : ap.tree) hard += n.hard ? 1 : 0;
+        const size_t hard = format::hardPlanes(ap.tree);
         std::printf("partition: the %ux%ux%u grid split at walls where a cell holds a lit and a dark side (%llu splits, %zu inside a "
                     "wall with no blending across: %u leaves, %u with surface, on a %ux%ux%u lattice; --no-wall-splits keeps the "
                     "cells whole)\n",

@@ -47,8 +47,7 @@ int runInfo(const std::string& path) {
             smallest = std::min(smallest, v);
             largest = std::max(largest, v);
         }
-        size_t hard = 0;
-        for (const format::TreeNode& n : a.tree) hard += n.hard ? 1 : 0;
+        const size_t hard = format::hardPlanes(a.tree);
         std::printf("partition: kd-tree of %u leaves over the grid's lattice (%zu nodes, %zu bytes, %zu hard planes with no "
                     "blending across), %zu with a network; leaves of %llu to %llu lattice voxels\n",
                     leaves, a.tree.size(), 4 + 8 * a.tree.size(), hard, a.voxels.size(), (unsigned long long)smallest,

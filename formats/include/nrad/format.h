@@ -147,6 +147,13 @@ struct TreeNode {
     bool hard = false;
 };
 
+// The hard nodes of a tree.
+inline size_t hardPlanes(const std::vector<TreeNode>& nodes) {
+    size_t n = 0;
+    for (const TreeNode& node : nodes) n += node.hard ? 1 : 0;
+    return n;
+}
+
 // A leaf's (or node's) box on the lattice: [lo, hi) per axis, in voxels of the grid.
 struct TreeBox {
     uint32_t lo[3] = {0, 0, 0};
@@ -664,9 +671,7 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     out[8] = uint8_t(kVersionMajor);
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
-    bool hard = false;
-    if (a.header.flags & kFlagTree)
-        for (const TreeNode& n : a.tree) hard = hard || n.hard;
+    const bool hard = (a.header.flags & kFlagTree) && hardPlanes(a.tree) > 0;
     const uint16_t minor = hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
