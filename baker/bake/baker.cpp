@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <atomic>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -283,20 +284,98 @@ TrainSettings startTrainSettings(const BakeSettings& settings) {
     return start;
 }
 
-// Trains every occupied cell's network, in parallel, into result.voxels.
-void trainCells(const BakeSettings& settings, const BakeCells& cells, const BakeProgress& progress, BakeResult& result) {
+// A network's result as bytes, and back (the processes of a bake exchange them).
+void putResult(ByteWriter& w, const VoxelTrainResult& v) {
+    w.put(v.voxel);
+    w.putVector(v.params);
+    w.put(v.scale);
+    w.put(v.transform);
+    w.put(uint64_t(v.trainCount));
+    w.put(uint64_t(v.heldOutCount));
+    w.put(v.heldOutRelMse);
+    w.put(v.trainRelMse);
+    w.put(v.epochs);
+    w.put(v.attempts);
+    w.put(v.fallback);
+    w.put(v.weightDecay);
+    w.put(uint64_t(v.events.size()));
+    for (const std::string& e : v.events) w.putString(e);
+    w.putVector(v.curve);
+    w.put(v.seconds);
+}
+
+VoxelTrainResult getResult(ByteReader& in) {
+    VoxelTrainResult v;
+    v.voxel = in.get<uint32_t>();
+    v.params = in.getVector<float>();
+    v.scale = in.get<float>();
+    v.transform = in.get<format::OutputTransform>();
+    v.trainCount = size_t(in.get<uint64_t>());
+    v.heldOutCount = size_t(in.get<uint64_t>());
+    v.heldOutRelMse = in.get<double>();
+    v.trainRelMse = in.get<double>();
+    v.epochs = in.get<int>();
+    v.attempts = in.get<int>();
+    v.fallback = in.get<bool>();
+    v.weightDecay = in.get<float>();
+    const uint64_t events = in.get<uint64_t>();
+    for (uint64_t e = 0; e < events; ++e) v.events.push_back(in.getString());
+    v.curve = in.getVector<TrainCurvePoint>();
+    v.seconds = in.get<double>();
+    return v;
+}
+
+// Which process trains each of `count` networks (their costs: their samples); all of them this one's without a group.
+std::vector<int> networkOwners(const std::vector<double>& costs, const BakeGroup* group) {
+    return group && group->size() > 1 ? assignByCost(costs, group->size()) : std::vector<int>(costs.size(), 0);
+}
+
+// Every process's networks (`owner`) into `all` on every process, from each one's own in `all`.
+void exchangeResults(const BakeGroup* group, const std::vector<int>& owner, std::vector<VoxelTrainResult>& all) {
+    if (!group || group->size() <= 1) return;
+    ByteWriter w;
+    for (size_t k = 0; k < all.size(); ++k)
+        if (owner[k] == group->rank()) {
+            w.put(uint64_t(k));
+            putResult(w, all[k]);
+        }
+    for (const std::vector<uint8_t>& bytes : group->allGather(w.bytes)) {
+        ByteReader in(bytes);
+        while (!in.done()) {
+            const uint64_t k = in.get<uint64_t>();
+            if (k >= all.size()) throw std::runtime_error("bake group: a network out of range");
+            all[size_t(k)] = getResult(in);
+        }
+    }
+}
+
+// Trains every occupied cell's network, in parallel (and with a group, this process its share), into result.voxels.
+void trainCells(const BakeSettings& settings, const BakeCells& cells, const BakeProgress& progress, BakeResult& result,
+                const BakeGroup* group) {
     std::vector<uint32_t> occupied;
     for (uint32_t v = 0; v < uint32_t(cells.byVoxel.size()); ++v)
         if (!cells.byVoxel[v].empty()) occupied.push_back(v);
-    result.voxels.resize(occupied.size());
+    std::vector<double> costs;
+    for (uint32_t v : occupied) costs.push_back(double(cells.byVoxel[v].size()));
+    const std::vector<int> owner = networkOwners(costs, group);
+    const int rank = group ? group->rank() : 0;
     const TrainSettings start = startTrainSettings(settings);
+    std::vector<uint32_t> mine;
     std::vector<const std::vector<VoxelSample>*> samples;
-    for (uint32_t v : occupied) samples.push_back(&cells.byVoxel[v]);
+    for (size_t k = 0; k < occupied.size(); ++k)
+        if (owner[k] == rank) {
+            mine.push_back(occupied[k]);
+            samples.push_back(&cells.byVoxel[occupied[k]]);
+        }
     std::atomic<size_t> done{0};
-    result.voxels = trainVoxels(occupied, samples, start, [&] {
+    std::vector<VoxelTrainResult> trained = trainVoxels(mine, samples, start, [&] {
         const size_t d = ++done;
-        if (progress.training) progress.training(double(d) / double(occupied.size()));
+        if (progress.training) progress.training(double(d) / double(mine.size()));
     });
+    result.voxels.assign(occupied.size(), VoxelTrainResult{});
+    for (size_t k = 0, t = 0; k < occupied.size(); ++k)
+        if (owner[k] == rank) result.voxels[k] = std::move(trained[t++]);
+    exchangeResults(group, owner, result.voxels);
 }
 
 // The asset of the networks as they stand (into result.asset).
@@ -341,9 +420,9 @@ GenerationStats startGeneration(const BakeSettings& settings, const BakeResult& 
 std::vector<std::vector<VoxelSample>> roundSamples(const Scene& scene, const BakeTracing& tracing, const BakeCells& cells,
                                                    const eval::Partition& partition, const SampleSettings& round,
                                                    const TargetEstimator& estimator, std::vector<TrainingSample>& fresh,
-                                                   GenerationStats& gs, BakeResult& result) {
+                                                   GenerationStats& gs, BakeResult& result, const BakeGroup* group) {
     SampleStats stats;
-    fresh = generateTrainingSamples(scene, tracing.tracer, tracing.grid, tracing.pieces, round, stats, {}, nullptr, estimator);
+    fresh = generateTrainingSamples(scene, tracing.tracer, tracing.grid, tracing.pieces, round, stats, {}, nullptr, estimator, group);
     gs.samples = fresh.size();
     gs.rays = stats.rays.total();
     result.sampleStats.rays += stats.rays;
@@ -362,9 +441,11 @@ std::vector<std::vector<VoxelSample>> roundSamples(const Scene& scene, const Bak
 // Training within the integral equation (paper Sec. 3): rounds of fresh points whose targets are a bounce or
 // two with the networks as they stood for the rest of the path, each network continuing from where it was.
 // Targets of a round come from the networks before it (frozen while it is sampled), and every network trains
-// on its own samples, so the result does not depend on the threads.
+// on its own samples, so the result does not depend on the threads. With a group, each process traces its share
+// of a round's points and continues its own networks (the owners of the start), and the networks are exchanged
+// after every round.
 void integralRounds(const Scene& scene, const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells,
-                    const format::Topology& topology, const BakeProgress& progress, BakeResult& result) {
+                    const format::Topology& topology, const BakeProgress& progress, BakeResult& result, const BakeGroup* group) {
     const IntegralSettings& in = settings.integral;
     const eval::Partition partition = cellPartition(cells, result.partition);
     result.generations.push_back(startGeneration(settings, result));
@@ -374,6 +455,10 @@ void integralRounds(const Scene& scene, const BakeSettings& settings, const Bake
     }
     NetworkField field(partition, topology, topology.outputTransform, settings.train.demodulate);
     std::vector<NetworkState> states(result.voxels.size());
+    std::vector<double> costs;
+    for (const VoxelTrainResult& v : result.voxels) costs.push_back(double(cells.byVoxel[v.voxel].size()));
+    const std::vector<int> owner = networkOwners(costs, group);  // the start's owners (trainCells)
+    const int rank = group ? group->rank() : 0;
     for (size_t k = 0; k < states.size(); ++k) {
         field.set(result.voxels[k].voxel, result.voxels[k].params, result.voxels[k].scale);
         states[k].result = result.voxels[k];
@@ -393,16 +478,25 @@ void integralRounds(const Scene& scene, const BakeSettings& settings, const Bake
         auto ts = std::chrono::steady_clock::now();
         std::vector<TrainingSample> fresh;
         const std::vector<std::vector<VoxelSample>> byCell =
-            roundSamples(scene, tracing, cells, partition, round, estimator, fresh, gs, result);
+            roundSamples(scene, tracing, cells, partition, round, estimator, fresh, gs, result, group);
         round.firstPoint += round.points;
         gs.samplingSeconds = since(ts);
         auto tt = std::chrono::steady_clock::now();
         tbb::parallel_for(tbb::blocked_range<size_t>(0, states.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
             for (size_t k = r.begin(); k != r.end(); ++k) {
                 const std::vector<VoxelSample>& mine = byCell[states[k].result.voxel];
-                if (!mine.empty()) continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, in.averageDecay, states[k]);
+                if (owner[k] == rank && !mine.empty())
+                    continueVoxel(mine, settings.train, g, in.epochs, gs.learningRate, in.averageDecay, states[k]);
             }
         });
+        if (group && group->size() > 1) {
+            std::vector<VoxelTrainResult> now(states.size());
+            for (size_t k = 0; k < states.size(); ++k)
+                if (owner[k] == rank) now[k] = states[k].result;
+            exchangeResults(group, owner, now);
+            for (size_t k = 0; k < states.size(); ++k)
+                if (owner[k] != rank) states[k].result = std::move(now[k]);
+        }
         for (size_t k = 0; k < states.size(); ++k) {
             field.set(states[k].result.voxel, states[k].result.params, states[k].result.scale);
             gs.heldOutRelMse += states[k].result.heldOutRelMse / double(states.size());
@@ -456,7 +550,7 @@ const SampleSettings& defaultBakeSamples() {
     return s.samples;
 }
 
-BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakeProgress& progress) {
+BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakeProgress& progress, const BakeGroup* group) {
     const BakeSettings settings = resolvedBakeSettings(given);
     BakeResult result;
     auto t0 = std::chrono::steady_clock::now();
@@ -466,7 +560,8 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
 
     auto t1 = std::chrono::steady_clock::now();
     const std::vector<TrainingSample> samples = generateTrainingSamples(
-        scene, tracing.tracer, tracing.grid, tracing.pieces, settings.samples, result.sampleStats, progress.sampling, &tracing.selector);
+        scene, tracing.tracer, tracing.grid, tracing.pieces, settings.samples, result.sampleStats, progress.sampling, &tracing.selector,
+        {}, group);
     result.sampleCount = samples.size();
     result.timings.sampling = since(t1);
 
@@ -476,9 +571,10 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
     result.timings.partition = since(tPartition);
 
     auto t2 = std::chrono::steady_clock::now();
-    trainCells(settings, cells, progress, result);
+    trainCells(settings, cells, progress, result, group);
     result.timings.training = since(t2);
-    if (settings.training == TrainingMethod::Integral) integralRounds(scene, settings, tracing, cells, topology, progress, result);
+    if (settings.training == TrainingMethod::Integral)
+        integralRounds(scene, settings, tracing, cells, topology, progress, result, group);
 
     assembleAsset(scene, settings, cells, topology, result);
     if (cells.budgeted) {

@@ -8,6 +8,7 @@
 
 #include <nrad/format.h>
 
+#include "baker/bake/bake_group.h"
 #include "baker/bake/partition.h"
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_samples.h"
@@ -118,8 +119,11 @@ BakeSettings resolvedBakeSettings(BakeSettings settings);
 // The samples of a bake at the defaults, resolved (what validate's baseline falls back on).
 const SampleSettings& defaultBakeSamples();
 
-// Bakes with resolvedBakeSettings(settings).
-BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {});
+// Bakes with resolvedBakeSettings(settings). group: the processes baking it together (MPI ranks), each tracing its
+// share of the points and training its share of the networks (assigned by samples, largest first), every
+// process ending with the whole result, the same bytes as one process's; nullptr: this process alone.
+BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {},
+                     const BakeGroup* group = nullptr);
 
 // The networks' shape as the asset records it: hidden widths, weight encoding, output transform (the loss's).
 format::Topology bakeTopology(const BakeSettings& settings);

@@ -289,10 +289,42 @@ void storeTargets(const PointStarts& ps, const VoxelGrid& grid, const std::vecto
 
 }  // namespace
 
+namespace {
+// Every process's traced share into `out` and `valid`, and the counts of its paths summed into `stats` (the
+// points' counts, decided before tracing, are every process's own).
+void gatherShares(const BakeGroup& group, const Share& share, std::vector<TrainingSample>& out, std::vector<uint8_t>& valid,
+                  SampleStats& stats) {
+    ByteWriter w;
+    w.put(stats.rays);
+    w.put(stats.nonFinitePaths);
+    w.put(stats.noisyPoints);
+    w.putVector(std::vector<uint8_t>(valid.begin() + ptrdiff_t(share.first), valid.begin() + ptrdiff_t(share.last)));
+    for (size_t i = share.first; i < share.last; ++i)
+        if (valid[i]) w.put(out[i]);
+    const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
+    stats.rays = RayCounters{};
+    stats.nonFinitePaths = stats.noisyPoints = 0;
+    for (int r = 0; r < group.size(); ++r) {
+        ByteReader in(all[size_t(r)]);
+        stats.rays += in.get<RayCounters>();
+        stats.nonFinitePaths += in.get<uint64_t>();
+        stats.noisyPoints += in.get<uint64_t>();
+        const Share theirs = shareOf(out.size(), r, group.size());
+        const std::vector<uint8_t> v = in.getVector<uint8_t>();
+        if (v.size() != theirs.last - theirs.first) throw std::runtime_error("bake group: a process traced another share");
+        for (size_t i = 0; i < v.size(); ++i) {
+            valid[theirs.first + i] = v[i];
+            if (v[i]) out[theirs.first + i] = in.get<TrainingSample>();
+        }
+    }
+}
+}  // namespace
+
 std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
                                                     SampleStats& stats, const std::function<void(double)>& progress,
-                                                    LightSelector* trainee, const TargetEstimator& estimator) {
+                                                    LightSelector* trainee, const TargetEstimator& estimator,
+                                                    const BakeGroup* group) {
     NRAD_CHECK(settings.points > 0 && settings.paths > 0);  // 0 means automatic: resolvedBakeSettings first
     stats = SampleStats{};
     stats.perVoxel.assign(grid.voxelCount(), 0);
@@ -309,16 +341,17 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
         warmUpSelector(ps, requests, *trainee, stats);
 
-    // The paths, range by range in parallel.
+    // The paths, range by range in parallel: this process's share of the points (all of them without a group).
     std::vector<TrainingSample> out(requests.size());
     std::vector<uint8_t> valid(requests.size(), 0);
+    const Share share = group ? shareOf(requests.size(), group->rank(), group->size()) : Share{0, requests.size()};
     std::atomic<size_t> done{0};
     std::mutex statsMutex;
     // Chunks of enough points for a few hundred paths (the tracer's batches), traced one after another within each of
     // the scheduler's ranges, so that a chunk's buffers stay small (a range can be a sixteenth of the points: zdm2's
     // at once took 190 MB); the samples do not depend on either.
     const size_t chunk = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, requests.size(), chunk), [&](const tbb::blocked_range<size_t>& range) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(share.first, share.last, chunk), [&](const tbb::blocked_range<size_t>& range) {
         RangeBatch total;
         for (size_t first = range.begin(); first < range.end(); first += chunk) {
             RangeBatch batch;
@@ -330,13 +363,15 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
             total.nonFinite += batch.nonFinite;
             total.noisy += batch.noisy;
             const size_t d = done += part.size();
-            if (progress) progress(double(d) / double(requests.size()));
+            if (progress) progress(double(d) / double(std::max<size_t>(1, share.last - share.first)));
         }
         std::lock_guard<std::mutex> lock(statsMutex);
         stats.rays += total.counters;
         stats.nonFinitePaths += total.nonFinite;
         stats.noisyPoints += total.noisy;
     });
+
+    if (group && group->size() > 1) gatherShares(*group, share, out, valid, stats);
 
     // The kept samples moved to the front of `out` in order, which then is the result (a copy, or shrinking it, would
     // hold both at once: 500 MB at the peak of a bake of 3.9 M samples).

@@ -12,6 +12,7 @@
 #include <glm/glm.hpp>
 #include <nrad/eval.h>
 
+#include "baker/bake/bake_group.h"
 #include "baker/bake/voxel_grid.h"
 #include "baker/render/path_tracer.h"
 
@@ -82,11 +83,13 @@ struct SampleStats {
     double neeWarmupSeconds = 0.0;
 };
 
-// trainee: the tracer's light selector if it is to be trained (learned mode), else nullptr.
+// trainee: the tracer's light selector if it is to be trained (learned mode), else nullptr. group: the processes
+// of the bake, each tracing its share of the points (every process gets every sample: the same as one process).
 std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const PathTracer& tracer, const VoxelGrid& grid,
                                                     const SurfacePieces& pieces, const SampleSettings& settings,
                                                     SampleStats& stats,
                                                     const std::function<void(double)>& progress = {},
-                                                    LightSelector* trainee = nullptr, const TargetEstimator& estimator = {});
+                                                    LightSelector* trainee = nullptr, const TargetEstimator& estimator = {},
+                                                    const BakeGroup* group = nullptr);
 
 }  // namespace nrad

@@ -16,6 +16,9 @@
 #include "baker/bake/baker.h"
 #include "baker/cmd/commands.h"
 #include "baker/scene/gltf_loader.h"
+#if defined(NRAD_HAVE_MPI)
+#include "baker/dist/mpi_group.h"
+#endif
 #include "baker/util/atomic_file.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"
@@ -374,9 +377,10 @@ int loadLitScene(const BakeOptions& o, CLI::App* cmd, const std::set<std::string
     return kExitOk;
 }
 
-// Bakes, with progress on stderr, and writes the asset (its bytes into `bytes`).
+// Bakes, with progress on stderr, and writes the asset (its bytes into `bytes`); with a group, every process
+// bakes its share and the first writes.
 int bakeAndWrite(const BakeOptions& o, const Scene& scene, const BakeSettings& s, BakeResult& r, std::vector<uint8_t>& bytes,
-                 double& writeSeconds) {
+                 double& writeSeconds, const BakeGroup* group) {
     ProgressBar sampling("sampling", !o.quiet), partition("partition", !o.quiet), training("training", !o.quiet);
     try {
         BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {},
@@ -385,7 +389,7 @@ int bakeAndWrite(const BakeOptions& o, const Scene& scene, const BakeSettings& s
             progress.generation = [&](uint32_t g, const BakeResult& soFar) {
                 writeBytesAtomically(o.saveGenerations + "-g" + std::to_string(g) + ".nrad", format::encode(soFar.asset));
             };
-        r = bakeScene(scene, s, progress);
+        r = bakeScene(scene, s, progress, group);
     } catch (const IoError& e) {  // --save-generations
         std::fprintf(stderr, "nrad bake: %s\n", e.what());
         return kExitIo;
@@ -395,6 +399,7 @@ int bakeAndWrite(const BakeOptions& o, const Scene& scene, const BakeSettings& s
     }
     auto t = std::chrono::steady_clock::now();
     bytes = format::encode(r.asset);
+    if (group && group->rank() != 0) return kExitOk;  // the first process writes
     try {
         writeBytesAtomically(o.output, bytes);
     } catch (const IoError& e) {
@@ -587,22 +592,35 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     return kExitOk;
 }
 
-int runBake(BakeOptions o, CLI::App* cmd) {
+// The processes of an MPI launch: exit codes agreed (the first process's), so that none waits for another that left.
+int agreed(const BakeGroup* group, int code) {
+    if (!group || group->size() <= 1) return code;
+    ByteWriter w;
+    w.put(int32_t(code));
+    const std::vector<std::vector<uint8_t>> all = group->allGather(w.bytes);
+    ByteReader first(all.front());
+    return first.get<int32_t>();
+}
+
+int runBake(BakeOptions o, CLI::App* cmd, const BakeGroup* group) {
+    const bool first = !group || group->rank() == 0;  // the process that prints, checks the outputs and writes
+    if (!first) o.quiet = true;
     std::set<std::string> configKeys;
     if (!o.config.empty())
         if (int code = readConfig(o, cmd, configKeys)) return code;
     BakeSettings s;
     if (int code = settingsFromOptions(o, s)) return code;
     if (o.dumpConfig) {
-        std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
+        if (first) std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
         return kExitOk;
     }
     {
         std::vector<std::string> outputs = {o.output};
         if (!o.stats.empty()) outputs.push_back(o.stats);
         if (!o.saveGenerations.empty()) outputs.push_back(o.saveGenerations + "-g0.nrad");
-        if (int code = checkOutputsForCommand("bake", outputs)) return code;
+        if (int code = agreed(group, first ? checkOutputsForCommand("bake", outputs) : kExitOk)) return code;
     }
+    if (!first) o.saveGenerations.clear();
     ThreadScope threads(o.threads);
     BakeTimes times;
     auto t0 = std::chrono::steady_clock::now();
@@ -611,13 +629,33 @@ int runBake(BakeOptions o, CLI::App* cmd) {
     times.load = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     BakeResult r;
     std::vector<uint8_t> bytes;
-    if (int code = bakeAndWrite(o, scene, s, r, bytes, times.write)) return code;
+    if (int code = bakeAndWrite(o, scene, s, r, bytes, times.write, group)) return code;
+    if (!first) return kExitOk;
     const HeldOutSummary h = heldOutSummary(r);
     printBakeLine(o, s, r, h, bytes.size(), times);
+    if (group && group->size() > 1) std::printf("processes: %d (MPI)\n", group->size());
     warnLargeHeldOut(scene, r, h);
     printRoundsAndPartition(s, r, bytes.size());
     if (!o.stats.empty()) return writeBakeStats(o, s, scene, r, h, bytes.size(), times);
     return kExitOk;
+}
+
+// A bake in this process, or, launched by mpirun, on every process of the launch.
+int runBakeCommand(const BakeOptions& o, CLI::App* cmd) {
+    if (!launchedByMpi()) return runBake(o, cmd, nullptr);
+#if defined(NRAD_HAVE_MPI)
+    try {
+        MpiGroup group;
+        return runBake(o, cmd, &group);
+    } catch (const std::runtime_error& e) {
+        std::fprintf(stderr, "nrad bake: MPI: %s\n", e.what());
+        return kExitIo;
+    }
+#else
+    std::fprintf(stderr, "nrad bake: started by an MPI launcher, but this nrad was built without MPI (install libopenmpi-dev and "
+                         "rebuild); bake with one process instead\n");
+    return kExitUsage;
+#endif
 }
 
 }  // namespace
@@ -638,7 +676,7 @@ std::function<int()> addBakeCommand(CLI::App& app) {
                   "exit without baking");
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
-    return [o, cmd]() { return runBake(*o, cmd); };
+    return [o, cmd]() { return runBakeCommand(*o, cmd); };
 }
 
 }  // namespace nrad

@@ -1,0 +1,102 @@
+// The processes one bake runs on: MPI ranks (baker/dist/), or this process alone. bakeScene asks them for
+// two things only: its share of a list of work, and everyone's results, in rank order, on every process.
+// Every process computes what is not shared (the points, the partition) identically, so a bake on any number
+// of processes gives the bytes of the one-process bake.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace nrad {
+
+class BakeGroup {
+public:
+    virtual ~BakeGroup() = default;
+    virtual int rank() const = 0;
+    virtual int size() const = 0;
+    // Every process's bytes, in rank order, on every process (collective: every process calls it, in the same order).
+    virtual std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const = 0;
+};
+
+// Whether this process was started by an MPI launcher (Open MPI's mpirun, or PMI/PMIx: Slurm's srun).
+bool launchedByMpi();
+
+// [first, last) of `count` items for `rank` of `size` processes: contiguous, in order, sizes differing by at most one.
+struct Share {
+    size_t first = 0, last = 0;
+};
+inline Share shareOf(size_t count, int rank, int size) {
+    const size_t n = size_t(size > 0 ? size : 1), r = size_t(rank);
+    return {count * r / n, count * (r + 1) / n};
+}
+
+// The owner of each item: largest cost first (equal costs: lower index first), each to the process with the
+// least cost so far (equal: the lower rank). The same on every process.
+std::vector<int> assignByCost(const std::vector<double>& costs, int size);
+
+// Bytes in, bytes out: trivially copyable values and vectors of them, native layout (every process of a bake
+// runs the same build on the same architecture).
+class ByteWriter {
+public:
+    template <class T>
+    void put(const T& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        const auto* p = reinterpret_cast<const uint8_t*>(&v);
+        bytes.insert(bytes.end(), p, p + sizeof(T));
+    }
+    template <class T>
+    void putVector(const std::vector<T>& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        put<uint64_t>(v.size());
+        const auto* p = reinterpret_cast<const uint8_t*>(v.data());
+        bytes.insert(bytes.end(), p, p + v.size() * sizeof(T));
+    }
+    void putString(const std::string& s) {
+        put<uint64_t>(s.size());
+        bytes.insert(bytes.end(), s.begin(), s.end());
+    }
+    std::vector<uint8_t> bytes;
+};
+
+class ByteReader {
+public:
+    explicit ByteReader(const std::vector<uint8_t>& bytes) : bytes_(bytes) {}
+    template <class T>
+    T get() {
+        static_assert(std::is_trivially_copyable_v<T>);
+        T v;
+        std::memcpy(&v, take(sizeof(T)), sizeof(T));
+        return v;
+    }
+    template <class T>
+    std::vector<T> getVector() {
+        const uint64_t n = get<uint64_t>();
+        if (n > (bytes_.size() - at_) / (sizeof(T) > 0 ? sizeof(T) : 1)) throw std::runtime_error("bake group: truncated message");
+        std::vector<T> v(n);
+        if (n) std::memcpy(v.data(), take(n * sizeof(T)), n * sizeof(T));
+        return v;
+    }
+    std::string getString() {
+        const uint64_t n = get<uint64_t>();
+        const uint8_t* p = take(n);
+        return std::string(reinterpret_cast<const char*>(p), n);
+    }
+    bool done() const { return at_ == bytes_.size(); }
+
+private:
+    const uint8_t* take(size_t n) {
+        if (n > bytes_.size() - at_) throw std::runtime_error("bake group: truncated message");
+        const uint8_t* p = bytes_.data() + at_;
+        at_ += n;
+        return p;
+    }
+    const std::vector<uint8_t>& bytes_;
+    size_t at_ = 0;
+};
+
+}  // namespace nrad

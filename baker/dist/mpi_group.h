@@ -1,0 +1,28 @@
+// The processes of an MPI launch (`mpirun -n N nrad bake ...`) as a BakeGroup. Only baker/dist/ sees MPI.
+#pragma once
+
+#include <memory>
+
+#include "baker/bake/bake_group.h"
+
+namespace nrad {
+
+// MPI from construction (MPI_Init_thread, funneled: only the calling thread talks to MPI) to destruction
+// (MPI_Finalize), and MPI_COMM_WORLD as a BakeGroup. Messages of any size (sent in pieces of at most 1 GiB).
+class MpiGroup : public BakeGroup {
+public:
+    MpiGroup();
+    ~MpiGroup() override;
+    MpiGroup(const MpiGroup&) = delete;
+    MpiGroup& operator=(const MpiGroup&) = delete;
+    int rank() const override { return rank_; }
+    int size() const override { return size_; }
+    std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const override;
+    // The host this process runs on (MPI_Get_processor_name).
+    std::string host() const;
+
+private:
+    int rank_ = 0, size_ = 1;
+};
+
+}  // namespace nrad
