@@ -15,7 +15,8 @@ PACKAGES=(cmake ninja-build g++ pkg-config python3
   libtbb-dev libcli11-dev libstb-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev chromium
   libvulkan-dev glslang-tools mesa-vulkan-drivers
-  g++-aarch64-linux-gnu qemu-user file)
+  g++-aarch64-linux-gnu qemu-user file
+  libopenmpi-dev openmpi-bin)
 
 install_packages() {
   local missing=()

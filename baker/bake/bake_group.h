@@ -21,6 +21,8 @@ public:
     virtual int size() const = 0;
     // Every process's bytes, in rank order, on every process (collective: every process calls it, in the same order).
     virtual std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const = 0;
+    // Seconds spent in allGather so far: waiting for the other processes, then exchanging.
+    virtual double exchangeSeconds() const { return 0.0; }
 };
 
 // Whether this process was started by an MPI launcher (Open MPI's mpirun, or PMI/PMIx: Slurm's srun).

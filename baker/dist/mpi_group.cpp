@@ -19,14 +19,8 @@ MpiGroup::MpiGroup() {
 
 MpiGroup::~MpiGroup() { MPI_Finalize(); }
 
-std::string MpiGroup::host() const {
-    char name[MPI_MAX_PROCESSOR_NAME] = {};
-    int length = 0;
-    MPI_Get_processor_name(name, &length);
-    return std::string(name, size_t(std::max(0, length)));
-}
-
 std::vector<std::vector<uint8_t>> MpiGroup::allGather(const std::vector<uint8_t>& mine) const {
+    const double start = MPI_Wtime();
     const size_t n = size_t(size_);
     uint64_t own = mine.size();
     std::vector<uint64_t> sizes(n);
@@ -52,6 +46,7 @@ std::vector<std::vector<uint8_t>> MpiGroup::allGather(const std::vector<uint8_t>
         for (size_t r = 0; r < n; ++r)
             std::copy(buffer.begin() + offsets[r], buffer.begin() + offsets[r] + counts[r], all[r].begin() + ptrdiff_t(at));
     }
+    seconds_ += MPI_Wtime() - start;
     return all;
 }
 

@@ -18,11 +18,12 @@ public:
     int rank() const override { return rank_; }
     int size() const override { return size_; }
     std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const override;
-    // The host this process runs on (MPI_Get_processor_name).
-    std::string host() const;
+    // Seconds this process spent in allGather: waiting for the others, then the exchange itself.
+    double exchangeSeconds() const override { return seconds_; }
 
 private:
     int rank_ = 0, size_ = 1;
+    mutable double seconds_ = 0.0;
 };
 
 }  // namespace nrad

@@ -20,12 +20,15 @@ ALLOWED = {
     "baker/render": {"baker/util", "baker/scene", "baker/nn", "baker/lights"},
     "baker/bake": {"baker/util", "baker/scene", "baker/nn", "baker/lights", "baker/render"},
     "baker/validate": {"baker/util", "baker/scene", "baker/nn", "baker/lights", "baker/render", "baker/bake"},
-    "baker/cmd": {"baker/util", "baker/scene", "baker/nn", "baker/lights", "baker/render", "baker/bake", "baker/validate"},
+    "baker/dist": {"baker/util", "baker/bake"},
+    "baker/cmd": {"baker/util", "baker/scene", "baker/nn", "baker/lights", "baker/render", "baker/bake", "baker/validate",
+                  "baker/dist"},
     "formats": set(),
     "runtime": set(),
 }
 # Third-party headers and the one module that may include them.
-HOMES = [(re.compile(r"^embree\d*/"), "baker/render"), (re.compile(r"^(tiny_gltf\.h|draco/)"), "baker/scene")]
+HOMES = [(re.compile(r"^embree\d*/"), "baker/render"), (re.compile(r"^(tiny_gltf\.h|draco/)"), "baker/scene"),
+         (re.compile(r"^mpi\.h$"), "baker/dist")]
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^">]+)[">]', re.M)
 
 

@@ -1,0 +1,70 @@
+// What the processes of a bake agree on without talking: their shares of a list, the owners of networks by
+// cost, and the bytes they exchange.
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "baker/bake/bake_group.h"
+
+namespace nrad {
+namespace {
+
+TEST(BakeGroup, SharesTileTheListInOrderAndDifferByAtMostOne) {
+    for (size_t count : {0u, 1u, 2u, 7u, 1000003u})
+        for (int size : {1, 2, 3, 8}) {
+            size_t at = 0, smallest = count, largest = 0;
+            for (int r = 0; r < size; ++r) {
+                const Share s = shareOf(count, r, size);
+                EXPECT_EQ(s.first, at) << count << " " << size << " " << r;
+                EXPECT_LE(s.first, s.last);
+                smallest = std::min(smallest, s.last - s.first);
+                largest = std::max(largest, s.last - s.first);
+                at = s.last;
+            }
+            EXPECT_EQ(at, count);
+            EXPECT_LE(largest - smallest, 1u);
+        }
+}
+
+TEST(BakeGroup, LargestCostFirstToTheLeastLoadedProcess) {
+    const std::vector<double> costs = {1.0, 10.0, 7.0, 9.0, 1.0, 8.0};
+    const std::vector<int> owner = assignByCost(costs, 2);
+    // Order: 10 (i1), 9 (i3), 8 (i5), 7 (i2), 1 (i0), 1 (i4). Loads: i1 -> 0 (10); i3 -> 1 (9); i5 -> 1 (17);
+    // i2 -> 0 (17); i0 -> 0 (equal: lower rank; 18); i4 -> 1 (18).
+    EXPECT_EQ(owner, (std::vector<int>{0, 0, 0, 1, 1, 1}));
+    double load[2] = {0, 0};
+    for (size_t i = 0; i < costs.size(); ++i) load[owner[i]] += costs[i];
+    EXPECT_EQ(load[0], 18.0);
+    EXPECT_EQ(load[1], 18.0);
+    EXPECT_EQ(assignByCost(costs, 1), std::vector<int>(6, 0));
+    EXPECT_EQ(assignByCost({}, 3), std::vector<int>{});
+}
+
+TEST(BakeGroup, BytesRoundTripAndATruncatedMessageIsRefused) {
+    ByteWriter w;
+    w.put(uint32_t(7));
+    w.putVector(std::vector<float>{1.5f, -2.0f});
+    w.putString("voxel 3: restarted");
+    w.put(2.25);
+    ByteReader in(w.bytes);
+    EXPECT_EQ(in.get<uint32_t>(), 7u);
+    EXPECT_EQ(in.getVector<float>(), (std::vector<float>{1.5f, -2.0f}));
+    EXPECT_EQ(in.getString(), "voxel 3: restarted");
+    EXPECT_EQ(in.get<double>(), 2.25);
+    EXPECT_TRUE(in.done());
+    std::vector<uint8_t> cut(w.bytes.begin(), w.bytes.end() - 3);
+    ByteReader short_(cut);
+    short_.get<uint32_t>();
+    short_.getVector<float>();
+    short_.getString();
+    EXPECT_THROW(short_.get<double>(), std::runtime_error);
+    ByteWriter h;  // a vector claiming more elements than there are bytes
+    h.put(uint64_t(1) << 40);
+    ByteReader lying(h.bytes);
+    EXPECT_THROW(lying.getVector<float>(), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace nrad
