@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -36,6 +37,23 @@ inline Share shareOf(size_t count, int rank, int size) {
     const size_t n = size_t(size > 0 ? size : 1), r = size_t(rank);
     return {count * r / n, count * (r + 1) / n};
 }
+
+// Items [0, count) in blocks of `block`, block b to process b % size: each process's share spread over the whole
+// list (points in list order are near each other in the scene and cost alike, so contiguous shares are unequal).
+struct BlockShares {
+    size_t count = 0, block = 1;
+    int size = 1;
+    size_t blocks() const { return (count + block - 1) / block; }
+    // The blocks of process `rank`, and its j-th one.
+    size_t blocksOf(int rank) const {
+        const size_t n = blocks(), r = size_t(rank), s = size_t(size);
+        return n > r ? (n - r + s - 1) / s : 0;
+    }
+    Share blockOf(int rank, size_t j) const {
+        const size_t b = j * size_t(size) + size_t(rank);
+        return {b * block, std::min(count, (b + 1) * block)};
+    }
+};
 
 // The owner of each item: largest cost first (equal costs: lower index first), each to the process with the
 // least cost so far (equal: the lower rank). The same on every process.

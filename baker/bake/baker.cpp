@@ -32,23 +32,33 @@ void hashBytes(uint64_t& h, const T* data, size_t count) {
     fnv1a(h, data, count * sizeof(T));
 }
 
+// Which process trains each of `count` networks (their costs: their samples); all of them this one's without a group.
+std::vector<int> networkOwners(const std::vector<double>& costs, const BakeGroup* group) {
+    return group && group->size() > 1 ? assignByCost(costs, group->size()) : std::vector<int>(costs.size(), 0);
+}
+
 // The partition's measured phase: each cell's network trained briefly on (up to 2,000 of) its own samples,
-// positions relative to their bounding box; what it leaves is its held-out relMSE times the cell's samples.
-LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const TrainSettings& train) {
+// positions relative to their bounding box; what it leaves is its held-out relMSE times the cell's samples. With a
+// group, each process trains its share of the cells and the scores are exchanged.
+LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const TrainSettings& train, const BakeGroup* group) {
     TrainSettings quick = train;
     quick.epochs = std::min(quick.epochs, 150);
     quick.patience = std::min(quick.patience, 50);
     quick.weightDecays.resize(1);
     quick.maxAttempts = 1;
     quick.curveEvery = 1 << 30;
-    return [&samples, quick](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
+    return [&samples, quick, group](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
+        std::vector<double> costs;
+        for (const std::vector<uint32_t>* set : sets) costs.push_back(double(std::min<size_t>(set->size(), 2000)));
+        const std::vector<int> owner = networkOwners(costs, group);
+        const int rank = group ? group->rank() : 0;
         // Each cell's (up to 2,000) samples, positions relative to their bounding box, in parallel; then every
         // cell's network trained at once.
         std::vector<std::vector<VoxelSample>> inputs(ids.size());
         tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
             for (size_t k = r.begin(); k != r.end(); ++k) {
                 const std::vector<uint32_t>& set = *sets[k];
-                if (set.empty()) continue;
+                if (set.empty() || owner[k] != rank) continue;
                 const size_t stride = std::max<size_t>(1, (set.size() + 1999) / 2000);
                 glm::vec3 lo(1e30f), hi(-1e30f);
                 for (uint32_t i : set) {
@@ -71,6 +81,15 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
         std::vector<double> out(ids.size(), 0.0);
         for (size_t k = 0, t = 0; k < ids.size(); ++k)
             if (!inputs[k].empty()) out[k] = results[t++].heldOutRelMse * double(sets[k]->size());
+        if (group && group->size() > 1) {  // every process's scores
+            ByteWriter w;
+            for (size_t k = 0; k < ids.size(); ++k)
+                if (owner[k] == rank) w.put(out[k]);
+            const std::vector<std::vector<uint8_t>> all = group->allGather(w.bytes);
+            std::vector<ByteReader> in;
+            for (const std::vector<uint8_t>& bytes : all) in.emplace_back(bytes);
+            for (size_t k = 0; k < ids.size(); ++k) out[k] = in[size_t(owner[k])].get<double>();
+        }
         return out;
     };
 }
@@ -234,7 +253,7 @@ eval::Partition cellPartition(const BakeCells& cells, const AdaptivePartition& a
 // refined on these very samples (into result.partition).
 BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const VoxelGrid& grid,
                          const std::vector<TrainingSample>& samples, const format::Topology& topology, const BakeProgress& progress,
-                         BakeResult& result) {
+                         BakeResult& result, const BakeGroup* group) {
     BakeCells cells;
     cells.band = std::clamp(settings.blendBand, 0.0f, format::kMaxBlendBand);
     cells.budgeted = settings.partition.budgetBytes > 0;
@@ -256,7 +275,7 @@ BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const
         cells.lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         cells.reserve = metadataReserve(scene, settings, result);
         result.partition = refinePartition(cells.lattice, samples, learned, topology, settings.partition, cells.reserve,
-                                           settings.partition.measured ? briefTrainingScorer(samples, settings.train) : LeafScorer(),
+                                           settings.partition.measured ? briefTrainingScorer(samples, settings.train, group) : LeafScorer(),
                                            progress.partition);
     }
     if (cells.adaptive) {
@@ -323,11 +342,6 @@ VoxelTrainResult getResult(ByteReader& in) {
     v.curve = in.getVector<TrainCurvePoint>();
     v.seconds = in.get<double>();
     return v;
-}
-
-// Which process trains each of `count` networks (their costs: their samples); all of them this one's without a group.
-std::vector<int> networkOwners(const std::vector<double>& costs, const BakeGroup* group) {
-    return group && group->size() > 1 ? assignByCost(costs, group->size()) : std::vector<int>(costs.size(), 0);
 }
 
 // Every process's networks (`owner`) into `all` on every process, from each one's own in `all`.
@@ -567,7 +581,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
 
     const format::Topology topology = bakeTopology(settings);
     auto tPartition = std::chrono::steady_clock::now();
-    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, progress, result);
+    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, progress, result, group);
     result.timings.partition = since(tPartition);
 
     auto t2 = std::chrono::steady_clock::now();

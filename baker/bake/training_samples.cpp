@@ -290,31 +290,46 @@ void storeTargets(const PointStarts& ps, const VoxelGrid& grid, const std::vecto
 }  // namespace
 
 namespace {
-// Every process's traced share into `out` and `valid`, and the counts of its paths summed into `stats` (the
-// points' counts, decided before tracing, are every process's own).
-void gatherShares(const BakeGroup& group, const Share& share, std::vector<TrainingSample>& out, std::vector<uint8_t>& valid,
+// Every process's traced blocks into `out` and `valid`, and the counts of its paths summed into `stats` (the
+// points' counts, decided before tracing, are every process's own). In rounds of at most 64 blocks from each
+// process, so that what is in flight stays small beside `out` (all of it at once doubled a process's peak memory).
+void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector<TrainingSample>& out, std::vector<uint8_t>& valid,
                   SampleStats& stats) {
-    ByteWriter w;
-    w.put(stats.rays);
-    w.put(stats.nonFinitePaths);
-    w.put(stats.noisyPoints);
-    w.putVector(std::vector<uint8_t>(valid.begin() + ptrdiff_t(share.first), valid.begin() + ptrdiff_t(share.last)));
-    for (size_t i = share.first; i < share.last; ++i)
-        if (valid[i]) w.put(out[i]);
-    const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
-    stats.rays = RayCounters{};
-    stats.nonFinitePaths = stats.noisyPoints = 0;
-    for (int r = 0; r < group.size(); ++r) {
-        ByteReader in(all[size_t(r)]);
-        stats.rays += in.get<RayCounters>();
-        stats.nonFinitePaths += in.get<uint64_t>();
-        stats.noisyPoints += in.get<uint64_t>();
-        const Share theirs = shareOf(out.size(), r, group.size());
-        const std::vector<uint8_t> v = in.getVector<uint8_t>();
-        if (v.size() != theirs.last - theirs.first) throw std::runtime_error("bake group: a process traced another share");
-        for (size_t i = 0; i < v.size(); ++i) {
-            valid[theirs.first + i] = v[i];
-            if (v[i]) out[theirs.first + i] = in.get<TrainingSample>();
+    {
+        ByteWriter w;
+        w.put(stats.rays);
+        w.put(stats.nonFinitePaths);
+        w.put(stats.noisyPoints);
+        stats.rays = RayCounters{};
+        stats.nonFinitePaths = stats.noisyPoints = 0;
+        for (const std::vector<uint8_t>& bytes : group.allGather(w.bytes)) {
+            ByteReader in(bytes);
+            stats.rays += in.get<RayCounters>();
+            stats.nonFinitePaths += in.get<uint64_t>();
+            stats.noisyPoints += in.get<uint64_t>();
+        }
+    }
+    constexpr size_t kRound = 64;
+    for (size_t j0 = 0; j0 < shares.blocksOf(0); j0 += kRound) {  // process 0 has the most blocks
+        ByteWriter w;
+        for (size_t j = j0; j < std::min(j0 + kRound, shares.blocksOf(group.rank())); ++j) {
+            const Share b = shares.blockOf(group.rank(), j);
+            for (size_t i = b.first; i < b.last; ++i) {
+                w.put(valid[i]);
+                if (valid[i]) w.put(out[i]);
+            }
+        }
+        const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
+        for (int r = 0; r < group.size(); ++r) {
+            ByteReader in(all[size_t(r)]);
+            for (size_t j = j0; j < std::min(j0 + kRound, shares.blocksOf(r)); ++j) {
+                const Share b = shares.blockOf(r, j);
+                for (size_t i = b.first; i < b.last; ++i) {
+                    valid[i] = in.get<uint8_t>();
+                    if (valid[i]) out[i] = in.get<TrainingSample>();
+                }
+            }
+            if (!in.done()) throw std::runtime_error("bake group: a process traced other points");
         }
     }
 }
@@ -344,26 +359,34 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     // The paths, range by range in parallel: this process's share of the points (all of them without a group).
     std::vector<TrainingSample> out(requests.size());
     std::vector<uint8_t> valid(requests.size(), 0);
-    const Share share = group ? shareOf(requests.size(), group->rank(), group->size()) : Share{0, requests.size()};
+    const int rank = group ? group->rank() : 0;
     std::atomic<size_t> done{0};
     std::mutex statsMutex;
     // Chunks of enough points for a few hundred paths (the tracer's batches), traced one after another within each of
     // the scheduler's ranges, so that a chunk's buffers stay small (a range can be a sixteenth of the points: zdm2's
     // at once took 190 MB); the samples do not depend on either.
     const size_t chunk = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
-    tbb::parallel_for(tbb::blocked_range<size_t>(share.first, share.last, chunk), [&](const tbb::blocked_range<size_t>& range) {
+    // This process's blocks of points (every block without a group), a few chunks each, spread over the list.
+    const BlockShares shares{requests.size(), 8 * chunk, group ? group->size() : 1};
+    const size_t mine = shares.blocksOf(rank);
+    size_t myPoints = 0;
+    for (size_t j = 0; j < mine; ++j) myPoints += shares.blockOf(rank, j).last - shares.blockOf(rank, j).first;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mine, 1), [&](const tbb::blocked_range<size_t>& blocks) {
         RangeBatch total;
-        for (size_t first = range.begin(); first < range.end(); first += chunk) {
-            RangeBatch batch;
-            const tbb::blocked_range<size_t> part(first, std::min(range.end(), first + chunk));
-            startRange(ps, requests, hidden, part, batch);
-            traceRange(ps, requests, estimator, batch);
-            storeTargets(ps, grid, requests, estimator, batch, out, valid);
-            total.counters += batch.counters;
-            total.nonFinite += batch.nonFinite;
-            total.noisy += batch.noisy;
-            const size_t d = done += part.size();
-            if (progress) progress(double(d) / double(std::max<size_t>(1, share.last - share.first)));
+        for (size_t j = blocks.begin(); j != blocks.end(); ++j) {
+            const Share range = shares.blockOf(rank, j);
+            for (size_t first = range.first; first < range.last; first += chunk) {
+                RangeBatch batch;
+                const tbb::blocked_range<size_t> part(first, std::min(range.last, first + chunk));
+                startRange(ps, requests, hidden, part, batch);
+                traceRange(ps, requests, estimator, batch);
+                storeTargets(ps, grid, requests, estimator, batch, out, valid);
+                total.counters += batch.counters;
+                total.nonFinite += batch.nonFinite;
+                total.noisy += batch.noisy;
+                const size_t d = done += part.size();
+                if (progress) progress(double(d) / double(std::max<size_t>(1, myPoints)));
+            }
         }
         std::lock_guard<std::mutex> lock(statsMutex);
         stats.rays += total.counters;
@@ -371,7 +394,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         stats.noisyPoints += total.noisy;
     });
 
-    if (group && group->size() > 1) gatherShares(*group, share, out, valid, stats);
+    if (group && group->size() > 1) gatherShares(*group, shares, out, valid, stats);
 
     // The kept samples moved to the front of `out` in order, which then is the result (a copy, or shrinking it, would
     // hold both at once: 500 MB at the peak of a bake of 3.9 M samples).

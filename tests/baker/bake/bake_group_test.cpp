@@ -28,6 +28,28 @@ TEST(BakeGroup, SharesTileTheListInOrderAndDifferByAtMostOne) {
         }
 }
 
+TEST(BakeGroup, BlockSharesTakeEveryItemOnceSpreadOverTheList) {
+    for (size_t count : {0u, 1u, 99u, 100u, 101u, 1000u})
+        for (int size : {1, 2, 3, 7}) {
+            const BlockShares shares{count, 10, size};
+            std::vector<int> owner(count, -1);
+            for (int r = 0; r < size; ++r) {
+                size_t last = 0;
+                for (size_t j = 0; j < shares.blocksOf(r); ++j) {
+                    const Share b = shares.blockOf(r, j);
+                    EXPECT_LT(b.first, b.last) << count << " " << size << " " << r << " " << j;
+                    EXPECT_GE(b.first, last);  // in order
+                    last = b.last;
+                    for (size_t i = b.first; i < b.last; ++i) {
+                        EXPECT_EQ(owner[i], -1) << i;
+                        owner[i] = r;
+                    }
+                }
+            }
+            for (size_t i = 0; i < count; ++i) EXPECT_EQ(owner[i], int((i / 10) % size_t(size))) << count << " " << size << " " << i;
+        }
+}
+
 TEST(BakeGroup, LargestCostFirstToTheLeastLoadedProcess) {
     const std::vector<double> costs = {1.0, 10.0, 7.0, 9.0, 1.0, 8.0};
     const std::vector<int> owner = assignByCost(costs, 2);
