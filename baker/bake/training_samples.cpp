@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 
@@ -287,9 +288,6 @@ void storeTargets(const PointStarts& ps, const VoxelGrid& grid, const std::vecto
     }
 }
 
-}  // namespace
-
-namespace {
 // Every process's traced blocks into `out` and `valid`, and the counts of its paths summed into `stats` (the
 // points' counts, decided before tracing, are every process's own). In rounds of at most 64 blocks from each
 // process, so that what is in flight stays small beside `out` (all of it at once doubled a process's peak memory).
@@ -346,6 +344,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     if (pieces.pieces().empty()) return {};
 
     // The points: pass 1 by area, then the floor per voxel, all decided before any path is traced.
+    const auto planStart = std::chrono::steady_clock::now();
     const PointStarts ps{scene, tracer, pieces, settings};
     std::vector<PointRequest> requests = areaRequests(pieces, settings);
     std::vector<uint8_t> hidden;
@@ -353,6 +352,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     stats.points = settings.points;
     addFloor(ps, grid, count, requests, stats);
     hidden.resize(requests.size(), 0);
+    stats.planSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - planStart).count();
     if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
         warmUpSelector(ps, requests, *trainee, stats);
 
@@ -362,11 +362,11 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     const int rank = group ? group->rank() : 0;
     std::atomic<size_t> done{0};
     std::mutex statsMutex;
-    // Chunks of enough points for a few hundred paths (the tracer's batches), traced one after another within each of
-    // the scheduler's ranges, so that a chunk's buffers stay small (a range can be a sixteenth of the points: zdm2's
-    // at once took 190 MB); the samples do not depend on either.
+    // Chunks of enough points for a few hundred paths (the tracer's batches), traced one after another within blocks
+    // of eight, so that a chunk's buffers stay small (a scheduler's range was once a sixteenth of the points: zdm2's
+    // at once took 190 MB); the samples depend on neither. This process traces its blocks (every block without a
+    // group), spread over the list.
     const size_t chunk = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
-    // This process's blocks of points (every block without a group), a few chunks each, spread over the list.
     const BlockShares shares{requests.size(), 8 * chunk, group ? group->size() : 1};
     const size_t mine = shares.blocksOf(rank);
     size_t myPoints = 0;

@@ -81,6 +81,7 @@ struct SampleStats {
     std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
     uint64_t neeWarmupPaths = 0, neeTrainingSteps = 0;
     double neeWarmupSeconds = 0.0;
+    double planSeconds = 0.0;  // deciding the points (area pass, who sees them, the floor): every process of a group alike
 };
 
 // trainee: the tracer's light selector if it is to be trained (learned mode), else nullptr. group: the processes

@@ -634,8 +634,9 @@ int runBake(BakeOptions o, CLI::App* cmd, const BakeGroup* group) {
     const HeldOutSummary h = heldOutSummary(r);
     printBakeLine(o, s, r, h, bytes.size(), times);
     if (group && group->size() > 1)
-        std::printf("processes: %d (MPI); the first waited for the others and exchanged with them for %.2f s\n", group->size(),
-                    group->exchangeSeconds());
+        std::printf("processes: %d (MPI); the first decided the points (as every process does) in %.2f s, waited for the others "
+                    "and exchanged with them for %.2f s\n",
+                    group->size(), r.sampleStats.planSeconds, group->exchangeSeconds());
     warnLargeHeldOut(scene, r, h);
     printRoundsAndPartition(s, r, bytes.size());
     if (!o.stats.empty()) return writeBakeStats(o, s, scene, r, h, bytes.size(), times);
