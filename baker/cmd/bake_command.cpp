@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -649,7 +650,14 @@ int runBakeCommand(const BakeOptions& o, CLI::App* cmd) {
 #if defined(NRAD_HAVE_MPI)
     try {
         MpiGroup group;
-        return runBake(o, cmd, &group);
+        BakeOptions mine = o;
+        // --threads 0 (all): a process bound to cores takes them; unbound, the machine's cores are shared by its
+        // processes (two processes on two cores would otherwise run four threads).
+        if (mine.threads == 0) {
+            const int cores = coresAvailable(), hardware = int(std::thread::hardware_concurrency());
+            mine.threads = cores < hardware ? cores : std::max(1, cores / group.processesOnThisMachine());
+        }
+        return runBake(mine, cmd, &group);
     } catch (const std::runtime_error& e) {
         std::fprintf(stderr, "nrad bake: MPI: %s\n", e.what());
         return kExitIo;

@@ -19,6 +19,15 @@ MpiGroup::MpiGroup() {
 
 MpiGroup::~MpiGroup() { MPI_Finalize(); }
 
+int MpiGroup::processesOnThisMachine() const {
+    MPI_Comm local;
+    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank_, MPI_INFO_NULL, &local) != MPI_SUCCESS) return 1;
+    int n = 1;
+    MPI_Comm_size(local, &n);
+    MPI_Comm_free(&local);
+    return n;
+}
+
 std::vector<std::vector<uint8_t>> MpiGroup::allGather(const std::vector<uint8_t>& mine) const {
     const double start = MPI_Wtime();
     const size_t n = size_t(size_);

@@ -18,6 +18,8 @@ public:
     int rank() const override { return rank_; }
     int size() const override { return size_; }
     std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const override;
+    // The processes of the launch on this machine (this one included).
+    int processesOnThisMachine() const;
     // Seconds this process spent in allGather: waiting for the others, then the exchange itself.
     double exchangeSeconds() const override { return seconds_; }
 

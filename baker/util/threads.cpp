@@ -3,6 +3,10 @@
 
 #include <thread>
 
+#if defined(__linux__)
+#include <sched.h>
+#endif
+
 #include <tbb/global_control.h>
 #include <tbb/task_scheduler_observer.h>
 
@@ -34,6 +38,16 @@ struct ThreadScope::Impl {
     FlushToZeroObserver observer;
     explicit Impl(int n) : control(tbb::global_control::max_allowed_parallelism, size_t(n)) {}
 };
+
+int coresAvailable() {
+#if defined(__linux__)
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    if (sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 0) return CPU_COUNT(&set);
+#endif
+    const int hw = int(std::thread::hardware_concurrency());
+    return hw > 0 ? hw : 1;
+}
 
 ThreadScope::ThreadScope(int threads) {
     int hw = int(std::thread::hardware_concurrency());

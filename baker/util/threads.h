@@ -9,6 +9,9 @@ namespace nrad {
 // Sets FTZ and DAZ on the calling thread (x86; a no-op elsewhere).
 void enableFlushToZero();
 
+// The cores this process may run on (its affinity mask; every hardware thread where there is none), at least 1.
+int coresAvailable();
+
 class ThreadScope {
 public:
     // threads == 0: use every hardware thread.
