@@ -3,9 +3,9 @@
 
 #include <chrono>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <atomic>
 #include <limits>
 #include <stdexcept>
 #include <string>
