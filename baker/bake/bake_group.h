@@ -29,14 +29,10 @@ public:
 // Whether this process was started by an MPI launcher (Open MPI's mpirun, or PMI/PMIx: Slurm's srun).
 bool launchedByMpi();
 
-// [first, last) of `count` items for `rank` of `size` processes: contiguous, in order, sizes differing by at most one.
+// Items [first, last) of a list.
 struct Share {
     size_t first = 0, last = 0;
 };
-inline Share shareOf(size_t count, int rank, int size) {
-    const size_t n = size_t(size > 0 ? size : 1), r = size_t(rank);
-    return {count * r / n, count * (r + 1) / n};
-}
 
 // Items [0, count) in blocks of `block`, block b to process b % size: each process's share spread over the whole
 // list (points in list order are near each other in the scene and cost alike, so contiguous shares are unequal).
@@ -96,7 +92,7 @@ public:
     template <class T>
     std::vector<T> getVector() {
         const uint64_t n = get<uint64_t>();
-        if (n > (bytes_.size() - at_) / (sizeof(T) > 0 ? sizeof(T) : 1)) throw std::runtime_error("bake group: truncated message");
+        if (n > (bytes_.size() - at_) / sizeof(T)) throw std::runtime_error("bake group: truncated message");
         std::vector<T> v(n);
         if (n) std::memcpy(v.data(), take(n * sizeof(T)), n * sizeof(T));
         return v;

@@ -21,28 +21,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-    int exitCode;
-    std::string output;  // stdout and stderr
-};
+using RunResult = test::CommandResult;
 
-RunResult run(const std::string& args) {
-    std::string cmd = "'" + test::nradExecutable() + "' " + args + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-    int status = pclose(pipe);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+RunResult run(const std::string& args) { return test::runCommand("'" + test::nradExecutable() + "' " + args); }
 
 bool noFilesIn(const std::string& dir) { return fs::is_empty(dir); }
 
-std::string readFileBytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
+std::string readFileBytes(const std::string& path) { return test::fileBytes(path); }
 
 TEST(Cli, MalformedScenesExitThreeNamingTheFileAndWriteNothing) {
     std::ifstream f(test::sourcePath("tests/data/malformed/corpus.json"));

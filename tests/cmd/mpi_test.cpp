@@ -7,8 +7,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <string>
 #include <thread>
 #include <vector>
@@ -22,30 +20,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-    int exitCode;
-    std::string output;
-};
-
-RunResult shell(const std::string& cmd) {
-    FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-    std::string out;
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-    const int status = pclose(pipe);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using test::runCommand;
+using test::fileBytes;
 
 // mpirun as CI runs it: as root it must be allowed, two cores take three processes, and no process is bound
 // to one core (each bakes with its threads).
 std::string mpirun(int processes) {
     return "mpirun --allow-run-as-root --oversubscribe --bind-to none -n " + std::to_string(processes) + " ";
-}
-
-std::string bytesOf(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 std::string exe() { return "'" + test::nradExecutable() + "'"; }
@@ -59,17 +40,17 @@ std::string bakeArgs(const std::string& flags, const std::string& out) {
 class MpiBake : public testing::TestWithParam<const char*> {};
 
 TEST_P(MpiBake, OneTwoAndThreeProcessesWriteTheOneProcessBytes) {
-    ASSERT_EQ(shell("mpirun --version").exitCode, 0) << "mpirun is missing (./run.sh installs openmpi-bin)";
+    ASSERT_EQ(runCommand("mpirun --version").exitCode, 0) << "mpirun is missing (./run.sh installs openmpi-bin)";
     const std::string dir = test::temporaryDirectory(), plain = dir + "/plain.nrad";
-    RunResult r = shell(exe() + bakeArgs(GetParam(), plain) + " --threads 2");
+    test::CommandResult r = runCommand(exe() + bakeArgs(GetParam(), plain) + " --threads 2");
     ASSERT_EQ(r.exitCode, 0) << r.output;
-    const std::string expected = bytesOf(plain);
+    const std::string expected = fileBytes(plain);
     ASSERT_GT(expected.size(), 1000u);
     for (int n : {1, 2, 3}) {
         const std::string out = dir + "/mpi" + std::to_string(n) + ".nrad";
-        r = shell(mpirun(n) + exe() + bakeArgs(GetParam(), out) + " --threads 1");
+        r = runCommand(mpirun(n) + exe() + bakeArgs(GetParam(), out) + " --threads 1");
         ASSERT_EQ(r.exitCode, 0) << n << " processes: " << r.output;
-        EXPECT_TRUE(bytesOf(out) == expected) << n << " processes: the asset differs from the one-process bake";
+        EXPECT_TRUE(fileBytes(out) == expected) << n << " processes: the asset differs from the one-process bake";
         if (n > 1) {
             EXPECT_NE(r.output.find("processes: " + std::to_string(n) + " (MPI)"), std::string::npos) << r.output;
         }
@@ -92,7 +73,7 @@ std::vector<std::pair<pid_t, int>> ranksNaming(const std::string& marker) {
     for (const fs::directory_entry& e : fs::directory_iterator("/proc")) {
         const std::string name = e.path().filename().string();
         if (name.find_first_not_of("0123456789") != std::string::npos) continue;
-        std::string cmdline = bytesOf(e.path().string() + "/cmdline"), environ = bytesOf(e.path().string() + "/environ");
+        std::string cmdline = fileBytes(e.path().string() + "/cmdline"), environ = fileBytes(e.path().string() + "/environ");
         if (cmdline.find(marker) == std::string::npos || cmdline.find("mpirun") != std::string::npos) continue;
         const std::string key = std::string("OMPI_COMM_WORLD_RANK=");
         const size_t at = environ.find(key);
@@ -119,12 +100,12 @@ TEST(Mpi, AProcessKilledMidBakeEndsTheLaunchWithAnErrorAndNoAsset) {
         for (auto [pid, rank] : ranksNaming(out))
             if (rank == 1) victim = pid;
     }
-    ASSERT_NE(victim, 0) << bytesOf(log);
+    ASSERT_NE(victim, 0) << fileBytes(log);
     std::this_thread::sleep_for(std::chrono::seconds(2));  // well into the sampling
     ASSERT_EQ(kill(victim, SIGKILL), 0);
     int status = 0;
     ASSERT_EQ(waitpid(child, &status, 0), child);
-    const std::string output = bytesOf(log);
+    const std::string output = fileBytes(log);
     EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << output;
     EXPECT_FALSE(fs::exists(out)) << output;
     for (const fs::directory_entry& e : fs::directory_iterator(dir))  // no partial file either

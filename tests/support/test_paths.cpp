@@ -2,11 +2,15 @@
 #include "support/test_paths.h"
 
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <mutex>
 #include <vector>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace nrad::test {
@@ -42,6 +46,22 @@ std::string temporaryDirectory() {
     std::lock_guard<std::mutex> lock(cleanup().mutex);
     cleanup().dirs.push_back(dir);
     return dir.string();
+}
+
+CommandResult runCommand(const std::string& command) {
+    FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+    if (!pipe) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+    const int status = pclose(pipe);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+std::string fileBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 }  // namespace nrad::test

@@ -10,4 +10,13 @@ std::string externalScene(const std::string& relative);  // inside ../shared/sce
 std::string nradExecutable();
 std::string temporaryDirectory();  // a fresh folder per call, removed at exit
 
+// A shell command's exit code (-1: it did not exit) and its stdout and stderr together.
+struct CommandResult {
+    int exitCode;
+    std::string output;
+};
+CommandResult runCommand(const std::string& command);
+
+std::string fileBytes(const std::string& path);  // empty if the file cannot be read
+
 }  // namespace nrad::test

@@ -1,4 +1,4 @@
-// What the processes of a bake agree on without talking: their shares of a list, the owners of networks by
+// What the processes of a bake agree on without talking: their blocks of a list, the owners of networks by
 // cost, and the bytes they exchange.
 #include <numeric>
 #include <string>
@@ -10,23 +10,6 @@
 
 namespace nrad {
 namespace {
-
-TEST(BakeGroup, SharesTileTheListInOrderAndDifferByAtMostOne) {
-    for (size_t count : {0u, 1u, 2u, 7u, 1000003u})
-        for (int size : {1, 2, 3, 8}) {
-            size_t at = 0, smallest = count, largest = 0;
-            for (int r = 0; r < size; ++r) {
-                const Share s = shareOf(count, r, size);
-                EXPECT_EQ(s.first, at) << count << " " << size << " " << r;
-                EXPECT_LE(s.first, s.last);
-                smallest = std::min(smallest, s.last - s.first);
-                largest = std::max(largest, s.last - s.first);
-                at = s.last;
-            }
-            EXPECT_EQ(at, count);
-            EXPECT_LE(largest - smallest, 1u);
-        }
-}
 
 TEST(BakeGroup, BlockSharesTakeEveryItemOnceSpreadOverTheList) {
     for (size_t count : {0u, 1u, 99u, 100u, 101u, 1000u})
