@@ -21,7 +21,11 @@ public:
     virtual int rank() const = 0;
     virtual int size() const = 0;
     // Every process's bytes, in rank order, on every process (collective: every process calls it, in the same order).
+    // Nothing (an empty list) where the processes do not meet: a shard that records what it would send (bake_shard.h).
     virtual std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const = 0;
+    // Whether this process traces its share of the points; false: allGather hands it every process's, its own
+    // included (a shard replaying the traced samples of a first stage).
+    virtual bool traces() const { return true; }
     // Seconds spent in allGather so far: waiting for the other processes, then exchanging.
     virtual double exchangeSeconds() const { return 0.0; }
 };

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -346,7 +347,7 @@ VoxelTrainResult getResult(ByteReader& in) {
 
 // Every process's networks (`owner`) into `all` on every process, from each one's own in `all`.
 void exchangeResults(const BakeGroup* group, const std::vector<int>& owner, std::vector<VoxelTrainResult>& all) {
-    if (!group || group->size() <= 1) return;
+    if (!group) return;  // (one process of a group too: a shard records its networks)
     ByteWriter w;
     for (size_t k = 0; k < all.size(); ++k)
         if (owner[k] == group->rank()) {
@@ -363,8 +364,9 @@ void exchangeResults(const BakeGroup* group, const std::vector<int>& owner, std:
     }
 }
 
-// Trains every occupied cell's network, in parallel (and with a group, this process its share), into result.voxels.
-void trainCells(const BakeSettings& settings, const BakeCells& cells, const BakeProgress& progress, BakeResult& result,
+// Trains every occupied cell's network, in parallel (and with a group, this process its share), into result.voxels;
+// returns the process that trained each.
+std::vector<int> trainCells(const BakeSettings& settings, const BakeCells& cells, const BakeProgress& progress, BakeResult& result,
                 const BakeGroup* group) {
     std::vector<uint32_t> occupied;
     for (uint32_t v = 0; v < uint32_t(cells.byVoxel.size()); ++v)
@@ -387,9 +389,12 @@ void trainCells(const BakeSettings& settings, const BakeCells& cells, const Bake
         if (progress.training) progress.training(double(d) / double(mine.size()));
     });
     result.voxels.assign(occupied.size(), VoxelTrainResult{});
-    for (size_t k = 0, t = 0; k < occupied.size(); ++k)
+    for (size_t k = 0, t = 0; k < occupied.size(); ++k) {
+        result.voxels[k].voxel = occupied[k];  // (the others' too: a shard keeps their places)
         if (owner[k] == rank) result.voxels[k] = std::move(trained[t++]);
+    }
     exchangeResults(group, owner, result.voxels);
+    return owner;
 }
 
 // The asset of the networks as they stand (into result.asset).
@@ -564,32 +569,60 @@ const SampleSettings& defaultBakeSamples() {
     return s.samples;
 }
 
-BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakeProgress& progress, const BakeGroup* group) {
-    const BakeSettings settings = resolvedBakeSettings(given);
-    BakeResult result;
-    auto t0 = std::chrono::steady_clock::now();
-    BakeTracing tracing(scene, settings);
-    result.surfaceArea = tracing.pieces.totalArea();
-    result.timings.setup = since(t0);
+namespace {
 
+// The phases of a bake (plan and sample, partition, train, rounds, assemble), every mode's: with `sampling`, the
+// processes that trace the points together (or whose traced points are replayed), `partition` those that share the
+// partition's scoring, `training` those that train the networks together; nullptr: this process alone.
+struct BakeGroups {
+    const BakeGroup *sampling = nullptr, *partition = nullptr, *training = nullptr;
+};
+
+// The plan: the scene's BVH, lights, grid and surface pieces (the time into result).
+std::unique_ptr<BakeTracing> setupPhase(const Scene& scene, const BakeSettings& settings, BakeResult& result) {
+    auto t0 = std::chrono::steady_clock::now();
+    auto tracing = std::make_unique<BakeTracing>(scene, settings);
+    result.surfaceArea = tracing->pieces.totalArea();
+    result.timings.setup = since(t0);
+    return tracing;
+}
+
+// A shard's settings, resolved: Monte Carlo training only.
+BakeSettings shardSettings(const BakeSettings& given) {
+    const BakeSettings settings = resolvedBakeSettings(given);
+    if (settings.training == TrainingMethod::Integral) throw std::invalid_argument(kShardsNotIntegral);
+    return settings;
+}
+
+// The training samples (their counts and time into result).
+std::vector<TrainingSample> samplePhase(const Scene& scene, const BakeSettings& settings, BakeTracing& tracing, const BakeProgress& progress,
+                                        BakeResult& result, const BakeGroup* group) {
     auto t1 = std::chrono::steady_clock::now();
-    const std::vector<TrainingSample> samples = generateTrainingSamples(
-        scene, tracing.tracer, tracing.grid, tracing.pieces, settings.samples, result.sampleStats, progress.sampling, &tracing.selector,
-        {}, group);
+    std::vector<TrainingSample> samples = generateTrainingSamples(scene, tracing.tracer, tracing.grid, tracing.pieces, settings.samples,
+                                                                  result.sampleStats, progress.sampling, &tracing.selector, {}, group);
     result.sampleCount = samples.size();
     result.timings.sampling = since(t1);
+    return samples;
+}
 
+// The bake from its samples on: partition, training, rounds, the asset; returns each network's trainer.
+std::vector<int> trainPhases(const Scene& scene, const BakeSettings& settings, const BakeTracing& tracing,
+                             const std::vector<TrainingSample>& samples, const BakeProgress& progress, const BakeGroups& groups,
+                             BakeResult& result) {
     const format::Topology topology = bakeTopology(settings);
     auto tPartition = std::chrono::steady_clock::now();
-    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, progress, result, group);
+    const BakeCells cells = partitionCells(scene, settings, tracing.grid, samples, topology, progress, result, groups.partition);
     result.timings.partition = since(tPartition);
 
     auto t2 = std::chrono::steady_clock::now();
-    trainCells(settings, cells, progress, result, group);
+    const std::vector<int> owner = trainCells(settings, cells, progress, result, groups.training);
     result.timings.training = since(t2);
     if (settings.training == TrainingMethod::Integral)
-        integralRounds(scene, settings, tracing, cells, topology, progress, result, group);
+        integralRounds(scene, settings, tracing, cells, topology, progress, result, groups.training);
 
+    // A shard's asset holds only its networks: the others' places are zero (mergeNetworkParts fills them).
+    for (VoxelTrainResult& v : result.voxels)
+        if (v.params.empty()) v.params.assign(topology.parameterCount(), 0.0f);
     assembleAsset(scene, settings, cells, topology, result);
     if (cells.budgeted) {
         const format::Asset& a = result.asset;
@@ -598,6 +631,44 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
             throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
                                    std::to_string(settings.partition.budgetBytes));
     }
+    return owner;
+}
+
+}  // namespace
+
+BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakeProgress& progress, const BakeGroup* group) {
+    const BakeSettings settings = resolvedBakeSettings(given);
+    BakeResult result;
+    const std::unique_ptr<BakeTracing> tracing = setupPhase(scene, settings, result);
+    const std::vector<TrainingSample> samples = samplePhase(scene, settings, *tracing, progress, result, group);
+    trainPhases(scene, settings, *tracing, samples, progress, {group, group, group}, result);
+    return result;
+}
+
+std::vector<std::vector<uint8_t>> traceShard(const Scene& scene, const BakeSettings& given, ShardId shard, const BakeProgress& progress,
+                                             BakeResult* stats) {
+    const BakeSettings settings = shardSettings(given);
+    BakeResult result;
+    const std::unique_ptr<BakeTracing> tracing = setupPhase(scene, settings, result);
+    ShardGroup group(shard, {});
+    samplePhase(scene, settings, *tracing, progress, result, &group);
+    if (stats) *stats = std::move(result);
+    return group.recorded();
+}
+
+BakeResult bakeShard(const Scene& scene, const BakeSettings& given, const ShardGroup& group, const BakeProgress& progress,
+                     std::vector<uint32_t>& trained) {
+    const BakeSettings settings = shardSettings(given);
+    BakeResult result;
+    const std::unique_ptr<BakeTracing> tracing = setupPhase(scene, settings, result);
+    // Without stage-1 parts this shard traces every point itself; the partition it computes alone (as every shard
+    // does); the networks it trains are its share, recorded by the group instead of exchanged.
+    const std::vector<TrainingSample> samples =
+        samplePhase(scene, settings, *tracing, progress, result, group.traces() ? nullptr : &group);
+    const std::vector<int> owner = trainPhases(scene, settings, *tracing, samples, progress, {nullptr, nullptr, &group}, result);
+    trained.clear();
+    for (size_t k = 0; k < owner.size(); ++k)
+        if (owner[k] == group.rank()) trained.push_back(uint32_t(k));
     return result;
 }
 

@@ -9,6 +9,7 @@
 #include <nrad/format.h>
 
 #include "baker/bake/bake_group.h"
+#include "baker/bake/bake_shard.h"
 #include "baker/bake/partition.h"
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_samples.h"
@@ -124,6 +125,21 @@ const SampleSettings& defaultBakeSamples();
 // process ending with the whole result, the same bytes as one process's; nullptr: this process alone.
 BakeResult bakeScene(const Scene& scene, const BakeSettings& settings, const BakeProgress& progress = {},
                      const BakeGroup* group = nullptr);
+
+// Shards (bake_shard.h): the bake split among processes that never meet, through part files. Monte Carlo bakes
+// only (integral training exchanges its networks between rounds: std::invalid_argument, kShardsNotIntegral).
+constexpr const char* kShardsNotIntegral =
+    "shards bake with Monte Carlo training only: training within the integral equation exchanges the networks between "
+    "its rounds (bake it on MPI processes with mpirun, or shard it with --training monte-carlo)";
+// Stage 1: this shard's share of the traced points, as the messages of a part (tracedSamplesPayload); `stats`, if
+// given, gets the sampling's counts and times.
+std::vector<std::vector<uint8_t>> traceShard(const Scene& scene, const BakeSettings& settings, ShardId shard,
+                                             const BakeProgress& progress = {}, BakeResult* stats = nullptr);
+// Stage 2: the bake with this shard's networks trained and the others' left zero in their places; `trained`: the
+// indices (into result.voxels and the asset's voxels) of its own. group: the shard, with the stage-1 parts to
+// replay (or none: it traces every point itself).
+BakeResult bakeShard(const Scene& scene, const BakeSettings& settings, const ShardGroup& group, const BakeProgress& progress,
+                     std::vector<uint32_t>& trained);
 
 // The networks' shape as the asset records it: hidden widths, weight encoding, output transform (the loss's).
 format::Topology bakeTopology(const BakeSettings& settings);

@@ -298,9 +298,12 @@ void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector
         w.put(stats.rays);
         w.put(stats.nonFinitePaths);
         w.put(stats.noisyPoints);
-        stats.rays = RayCounters{};
-        stats.nonFinitePaths = stats.noisyPoints = 0;
-        for (const std::vector<uint8_t>& bytes : group.allGather(w.bytes)) {
+        const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
+        if (!all.empty()) {  // (empty: a shard recording its share, bake_shard.h, keeps its own counts)
+            stats.rays = RayCounters{};
+            stats.nonFinitePaths = stats.noisyPoints = 0;
+        }
+        for (const std::vector<uint8_t>& bytes : all) {
             ByteReader in(bytes);
             stats.rays += in.get<RayCounters>();
             stats.nonFinitePaths += in.get<uint64_t>();
@@ -318,6 +321,7 @@ void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector
             }
         }
         const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
+        if (all.empty()) continue;  // recorded (a shard)
         for (int r = 0; r < group.size(); ++r) {
             ByteReader in(all[size_t(r)]);
             for (size_t j = j0; j < std::min(j0 + kRound, shares.blocksOf(r)); ++j) {
@@ -353,7 +357,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     addFloor(ps, grid, count, requests, stats);
     hidden.resize(requests.size(), 0);
     stats.planSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - planStart).count();
-    if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
+    const bool traces = !group || group->traces();  // false: the paths come from elsewhere (a shard's first stage)
+    if (traces && trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
         warmUpSelector(ps, requests, *trainee, stats);
 
     // The paths, range by range in parallel: this process's share of the points (all of them without a group).
@@ -368,7 +373,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     // group), spread over the list.
     const size_t chunk = std::max<size_t>(8, size_t(kBatchSize) / std::max<uint32_t>(1, settings.paths));
     const BlockShares shares{requests.size(), 8 * chunk, group ? group->size() : 1};
-    const size_t mine = shares.blocksOf(rank);
+    const size_t mine = traces ? shares.blocksOf(rank) : 0;
     size_t myPoints = 0;
     for (size_t j = 0; j < mine; ++j) myPoints += shares.blockOf(rank, j).last - shares.blockOf(rank, j).first;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mine, 1), [&](const tbb::blocked_range<size_t>& blocks) {
@@ -394,7 +399,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         stats.noisyPoints += total.noisy;
     });
 
-    if (group && group->size() > 1) gatherShares(*group, shares, out, valid, stats);
+    if (group) gatherShares(*group, shares, out, valid, stats);  // (one process of a group too: a shard records or replays)
 
     // The kept samples moved to the front of `out` in order, which then is the result (a copy, or shrinking it, would
     // hold both at once: 500 MB at the peak of a bake of 3.9 M samples).

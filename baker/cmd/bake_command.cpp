@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -21,6 +22,7 @@
 #include "baker/dist/mpi_group.h"
 #endif
 #include "baker/util/atomic_file.h"
+#include "baker/util/hash.h"
 #include "baker/util/progress.h"
 #include "baker/util/threads.h"
 
@@ -75,6 +77,8 @@ const char* encodingName(format::WeightEncoding e) { return e == format::WeightE
 // library's default (BakeSettings) as the flags' text; bakeSettingsTable() binds them to their flags and keys.
 struct BakeOptions {
     std::string scene, output, config, stats, saveGenerations;
+    std::string shard, traced;  // --shard K/N, --traced DIR (shard_bake: not settings of the asset)
+    bool traceOnly = false;
     int threads = 0;
     bool quiet = false, dumpConfig = false;
 
@@ -644,8 +648,139 @@ int runBake(BakeOptions o, CLI::App* cmd, const BakeGroup* group) {
     return kExitOk;
 }
 
+// The stage-1 parts in folder `dir` (the files that are parts of traced samples; others are passed over), checked to
+// be this bake's N shards, each once; in shard order.
+std::vector<std::string> tracedParts(const std::string& dir, const ShardPartHeader& expected) {
+    std::vector<std::string> paths;
+    std::vector<ShardPartHeader> headers;
+    std::error_code ec;
+    std::vector<std::string> files;
+    for (const std::filesystem::directory_entry& e : std::filesystem::directory_iterator(dir, ec))
+        if (e.is_regular_file()) files.push_back(e.path().string());
+    if (ec) throw IoError(dir + ": cannot be read: " + ec.message());
+    std::sort(files.begin(), files.end());
+    for (const std::string& f : files) {
+        char magic[8] = {};
+        std::ifstream(f, std::ios::binary).read(magic, sizeof magic);
+        if (std::string(magic, sizeof magic) != "NRADPART") continue;
+        const ShardPartHeader h = readShardPartHeader(f);
+        if (h.kind != ShardPartKind::TracedSamples) continue;
+        paths.push_back(f);
+        headers.push_back(h);
+    }
+    if (paths.empty()) throw ShardPartError(dir + ": holds no parts of traced samples (bake --shard K/N --trace-only first)");
+    checkShardSet(paths, headers, &expected);
+    std::vector<std::string> ordered(paths.size());
+    for (size_t i = 0; i < paths.size(); ++i) ordered[headers[i].shard.index] = paths[i];
+    return ordered;
+}
+
+// A shard of a bake (bake_shard.h): --trace-only, its share of the traced points (stage 1); else its share of the
+// networks (stage 2), from the stage-1 parts in --traced DIR or tracing every point itself. Writes a part.
+int runShardBake(BakeOptions o, CLI::App* cmd) {
+    ShardId shard;
+    if (!parseShardId(o.shard, shard)) {
+        std::fprintf(stderr, "nrad bake: --shard %s: not K/N with 0 <= K < N <= %u (shard K of N, counted from 0)\n", o.shard.c_str(),
+                     kMaxShards);
+        return kExitUsage;
+    }
+    if (o.traceOnly && !o.traced.empty()) {
+        std::fprintf(stderr, "nrad bake: --trace-only (stage 1) and --traced (stage 2) are two runs of a shard, not one\n");
+        return kExitUsage;
+    }
+    if (!o.stats.empty()) {
+        std::fprintf(stderr, "nrad bake: --stats describes a whole bake; a shard holds a part of one (merge the parts, then "
+                             "`nrad info` the asset)\n");
+        return kExitUsage;
+    }
+    std::set<std::string> configKeys;
+    if (!o.config.empty())
+        if (int code = readConfig(o, cmd, configKeys)) return code;
+    BakeSettings s;
+    if (int code = settingsFromOptions(o, s)) return code;
+    if (s.training == TrainingMethod::Integral) {
+        std::fprintf(stderr, "nrad bake: --shard: %s\n", kShardsNotIntegral);
+        return kExitUsage;
+    }
+    if (int code = checkOutputsForCommand("bake", {o.output})) return code;
+    ThreadScope threads(o.threads);
+    auto t0 = std::chrono::steady_clock::now();
+    Scene scene;
+    if (int code = loadLitScene(o, cmd, configKeys, scene, s)) return code;
+    const double load = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ShardPartHeader header;
+    header.shard = shard;
+    header.sceneHash = sceneHash(scene);
+    // Every setting as a config file would repeat it: shards of one bake are run with the same ones.
+    const std::string settingsText = bakeSettingsTable(o).json().dump();
+    header.settingsHash = kFnvOffsetBasis;
+    fnv1a(header.settingsHash, settingsText.data(), settingsText.size());
+
+    ProgressBar sampling("sampling", !o.quiet), partition("partition", !o.quiet), training("training", !o.quiet);
+    const BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {},
+                                [&](double f) { partition.update(f); }};
+    const std::string name = "shard " + std::to_string(shard.index) + " of " + std::to_string(shard.count);
+    try {
+        if (o.traceOnly) {
+            header.kind = ShardPartKind::TracedSamples;
+            BakeResult r;
+            const std::vector<uint8_t> payload = tracedSamplesPayload(traceShard(scene, s, shard, progress, &r));
+            writeShardPart(o.output, header, payload);
+            std::printf("traced %s of %s -> %s: %zu bytes, %llu rays; time: load %.2f s, setup %.2f s, sampling %.2f s (deciding the "
+                        "points %.2f s, as every shard does)\n",
+                        name.c_str(), o.scene.c_str(), o.output.c_str(), payload.size() + 56,
+                        (unsigned long long)r.sampleStats.rays.total(), load, r.timings.setup, r.timings.sampling,
+                        r.sampleStats.planSeconds);
+            return kExitOk;
+        }
+        header.kind = ShardPartKind::Networks;
+        std::vector<std::string> parts;
+        if (!o.traced.empty()) {
+            ShardPartHeader expected = header;
+            expected.kind = ShardPartKind::TracedSamples;
+            try {
+                parts = tracedParts(o.traced, expected);
+            } catch (const IoError& e) {  // the parts cannot be read: input
+                throw ShardPartError(e.what());
+            }
+        }
+        const ShardGroup group(shard, parts);
+        std::vector<uint32_t> trained;
+        const BakeResult r = bakeShard(scene, s, group, progress, trained);
+        const std::vector<uint8_t> payload = networksPayload(trained, format::encode(r.asset));
+        writeShardPart(o.output, header, payload);
+        std::printf("baked %s of %s -> %s: %zu of %zu networks trained here, %zu samples (%s); time: load %.2f s, setup %.2f s, "
+                    "sampling %.2f s, partition %.2f s, training %.2f s; merge the %u parts with `nrad merge PARTS -o ASSET`\n",
+                    name.c_str(), o.scene.c_str(), o.output.c_str(), trained.size(), r.voxels.size(), r.sampleCount,
+                    parts.empty() ? "traced here" : "read from the traced parts", load, r.timings.setup, r.timings.sampling,
+                    r.timings.partition, r.timings.training, shard.count);
+    } catch (const ShardPartError& e) {
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitBadInput;
+    } catch (const IoError& e) {
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitIo;
+    } catch (const std::runtime_error& e) {  // a budget below the smallest asset
+        std::fprintf(stderr, "nrad bake: %s\n", e.what());
+        return kExitUsage;
+    }
+    return kExitOk;
+}
+
 // A bake in this process, or, launched by mpirun, on every process of the launch.
 int runBakeCommand(const BakeOptions& o, CLI::App* cmd) {
+    if (o.shard.empty() && (o.traceOnly || !o.traced.empty())) {
+        std::fprintf(stderr, "nrad bake: %s needs --shard K/N\n", o.traceOnly ? "--trace-only" : "--traced");
+        return kExitUsage;
+    }
+    if (!o.shard.empty()) {
+        if (launchedByMpi()) {
+            std::fprintf(stderr, "nrad bake: --shard under an MPI launcher: a shard is one process of a farm's array job; "
+                                 "mpirun bakes the whole scene together (leave out --shard)\n");
+            return kExitUsage;
+        }
+        return runShardBake(o, cmd);
+    }
     if (!launchedByMpi()) return runBake(o, cmd, nullptr);
 #if defined(NRAD_HAVE_MPI)
     try {
@@ -686,6 +821,14 @@ std::function<int()> addBakeCommand(CLI::App& app) {
                   "Print every setting as --config reads it (the file's and the flags' values, the rest at their defaults) and "
                   "exit without baking");
     cmd->add_option("--stats", o->stats, "Write machine-readable statistics (JSON) here");
+    cmd->add_option("--shard", o->shard,
+                    "K/N: bake shard K of N (from 0) of a farm's array job and write a part (`nrad merge` makes the asset); "
+                    "Monte Carlo training only");
+    cmd->add_flag("--trace-only", o->traceOnly,
+                  "With --shard: only trace this shard's share of the points and write them as a part (stage 1 of two)");
+    cmd->add_option("--traced", o->traced,
+                    "With --shard: the folder of every shard's --trace-only part (stage 2: train this shard's networks on "
+                    "them); without it a shard traces every point itself");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress on stderr");
     return [o, cmd]() { return runBakeCommand(*o, cmd); };
 }

@@ -105,5 +105,6 @@ std::function<int()> addRenderCommand(CLI::App& app);
 std::function<int()> addBakeCommand(CLI::App& app);
 std::function<int()> addInfoCommand(CLI::App& app);
 std::function<int()> addValidateCommand(CLI::App& app);
+std::function<int()> addMergeCommand(CLI::App& app);
 
 }  // namespace nrad

@@ -13,7 +13,8 @@ int main(int argc, char** argv) {
     std::map<std::string, std::function<int()>> commands = {{"bake", nrad::addBakeCommand(app)},
                                                             {"render", nrad::addRenderCommand(app)},
                                                             {"info", nrad::addInfoCommand(app)},
-                                                            {"validate", nrad::addValidateCommand(app)}};
+                                                            {"validate", nrad::addValidateCommand(app)},
+                                                            {"merge", nrad::addMergeCommand(app)}};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
