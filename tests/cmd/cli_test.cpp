@@ -260,7 +260,8 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
         if (std::istringstream(line) >> names && names[0] == '-')
             for (const std::string& name : {names.substr(0, names.find(',')), names.substr(names.find(',') + 1)})
                 if (name.compare(0, 2, "--") == 0) helpFlags.insert(name);
-    for (const char* notSetting : {"--help", "--output", "--config", "--dump-config", "--stats", "--threads", "--quiet", "--save-generations"})
+    for (const char* notSetting : {"--help", "--output", "--config", "--dump-config", "--stats", "--threads", "--quiet", "--save-generations",
+                                   "--shard", "--trace-only", "--traced"})
         helpFlags.erase(notSetting);
     const std::string dir = test::temporaryDirectory();
     std::set<std::string> tableFlags;

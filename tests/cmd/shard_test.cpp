@@ -146,6 +146,11 @@ TEST_F(ShardParts, MergeRefusesDamagedParts) {
     expectRefused({part(0), bad}, bad + ": truncated (the header ends early)");
 }
 
+TEST_F(ShardParts, APartIsNotAnAsset) {
+    const std::string output = expectExit(exe() + " info '" + part(0) + "'", 3);
+    EXPECT_NE(output.find(part(0) + ": "), std::string::npos) << output;
+}
+
 TEST_F(ShardParts, TheSecondStageRefusesAMissingOrForeignTracedPart) {
     const std::string traced = dir() + "/traced", out = dir() + "/stage2.part";
     EXPECT_EQ(expectExit(bake("", out) + " --traced '" + traced + "' --shard 0/3", 3),
