@@ -26,6 +26,8 @@ public:
     // Whether this process traces its share of the points; false: allGather hands it every process's, its own
     // included (a shard replaying the traced samples of a first stage).
     virtual bool traces() const { return true; }
+    // Whether allGather is called at all: with other processes, or for a shard, which records or replays.
+    virtual bool exchanges() const { return size() > 1; }
     // Seconds spent in allGather so far: waiting for the other processes, then exchanging.
     virtual double exchangeSeconds() const { return 0.0; }
 };

@@ -1,6 +1,7 @@
 #include "baker/bake/bake_shard.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -15,7 +16,6 @@ namespace {
 
 constexpr char kMagic[8] = {'N', 'R', 'A', 'D', 'P', 'A', 'R', 'T'};
 constexpr uint32_t kPartVersion = 1;
-constexpr size_t kPartHeaderSize = 56;
 
 template <class T>
 T load(const uint8_t* p) {
@@ -71,9 +71,10 @@ PartFile readHeader(const std::string& path, std::ifstream& in) {
     return f;
 }
 
-// The payload's CRC, read in pieces from where `in` stands (the payload's start).
-void checkPayload(const std::string& path, std::ifstream& in, const PartFile& f) {
-    std::vector<uint8_t> buffer(1 << 20);
+// The payload, from where `in` stands (its start): its CRC checked, read in pieces; kept in `payload` if given.
+void readPayload(const std::string& path, std::ifstream& in, const PartFile& f, std::vector<uint8_t>* payload) {
+    std::vector<uint8_t> buffer(size_t(std::min<uint64_t>(f.payloadSize, 1 << 20)));
+    if (payload) payload->reserve(size_t(std::min<uint64_t>(f.payloadSize, uint64_t(1) << 32)));
     uint64_t left = f.payloadSize;
     uint32_t crc = 0;
     while (left > 0) {
@@ -81,28 +82,26 @@ void checkPayload(const std::string& path, std::ifstream& in, const PartFile& f)
         in.read(reinterpret_cast<char*>(buffer.data()), std::streamsize(n));
         if (size_t(in.gcount()) != n) throw ShardPartError(path + ": truncated (the payload ends early)");
         crc = format::crc32(buffer.data(), n, crc);
+        if (payload) payload->insert(payload->end(), buffer.begin(), buffer.begin() + ptrdiff_t(n));
         left -= n;
     }
     if (in.peek() != std::ifstream::traits_type::eof()) throw ShardPartError(path + ": bytes after the payload");
     if (crc != f.payloadCrc) throw ShardPartError(path + ": damaged (payload CRC mismatch)");
 }
 
+// The whole payload of `path`, checked; its header into `header`.
 std::vector<uint8_t> readPayload(const std::string& path, ShardPartHeader& header) {
     std::ifstream in;
     const PartFile f = readHeader(path, in);
     header = f.header;
-    if (f.payloadSize > uint64_t(std::numeric_limits<std::streamsize>::max())) throw ShardPartError(path + ": truncated");
-    std::vector<uint8_t> payload;
     {
         std::ifstream probe(path, std::ios::binary | std::ios::ate);
         if (uint64_t(probe.tellg()) != kPartHeaderSize + f.payloadSize)
             throw ShardPartError(path + ": truncated (" + std::to_string(uint64_t(probe.tellg())) + " bytes, the header announces " +
                                  std::to_string(kPartHeaderSize + f.payloadSize) + ")");
     }
-    payload.resize(size_t(f.payloadSize));
-    in.read(reinterpret_cast<char*>(payload.data()), std::streamsize(payload.size()));
-    if (size_t(in.gcount()) != payload.size()) throw ShardPartError(path + ": truncated (the payload ends early)");
-    if (format::crc32(payload.data(), payload.size()) != f.payloadCrc) throw ShardPartError(path + ": damaged (payload CRC mismatch)");
+    std::vector<uint8_t> payload;
+    readPayload(path, in, f, &payload);
     return payload;
 }
 
@@ -146,10 +145,10 @@ void writeShardPart(const std::string& path, const ShardPartHeader& header, cons
     });
 }
 
-ShardPartHeader readShardPartHeader(const std::string& path) {
+ShardPartHeader readShardPartHeader(const std::string& path, bool verifyPayload) {
     std::ifstream in;
     const PartFile f = readHeader(path, in);
-    checkPayload(path, in, f);
+    if (verifyPayload) readPayload(path, in, f, nullptr);
     return f.header;
 }
 
@@ -220,12 +219,23 @@ ShardGroup::ShardGroup(ShardId shard, const std::vector<std::string>& tracedPart
         auto p = std::make_unique<Part>();
         p->path = path;
         std::ifstream in;
-        readHeader(path, in);
+        const PartFile f = readHeader(path, in);
         uint64_t n = 0;
         in.read(reinterpret_cast<char*>(&n), sizeof n);
-        if (!in) throw ShardPartError(path + ": truncated (no message count)");
+        if (!in || f.payloadSize < sizeof n) throw ShardPartError(path + ": truncated (no message count)");
         p->messages = n;
         p->offset = kPartHeaderSize + sizeof n;
+        // Every message's size within the payload, and the messages the whole payload.
+        uint64_t at = sizeof n;
+        for (uint64_t m = 0; m < n; ++m) {
+            uint64_t bytes = 0;
+            in.seekg(std::streamoff(kPartHeaderSize + at));
+            in.read(reinterpret_cast<char*>(&bytes), sizeof bytes);
+            if (!in || bytes > f.payloadSize - at - sizeof bytes || f.payloadSize - at < sizeof bytes)
+                throw ShardPartError(path + ": damaged (message " + std::to_string(m) + " runs past the payload)");
+            at += sizeof bytes + bytes;
+        }
+        if (at != f.payloadSize) throw ShardPartError(path + ": damaged (bytes after its last message)");
         if (!parts_.empty() && n != parts_.front()->messages)
             throw ShardPartError(path + ": " + std::to_string(n) + " messages, " + parts_.front()->path + " " +
                                  std::to_string(parts_.front()->messages) + " (parts of different bakes)");
@@ -236,12 +246,15 @@ ShardGroup::ShardGroup(ShardId shard, const std::vector<std::string>& tracedPart
 ShardGroup::~ShardGroup() = default;
 
 std::vector<std::vector<uint8_t>> ShardGroup::allGather(const std::vector<uint8_t>& mine) const {
-    if (parts_.empty() || parts_.front()->next == parts_.front()->messages) {
+    if (parts_.empty() || recording_) {
         recorded_.push_back(mine);
         return {};
     }
     std::vector<std::vector<uint8_t>> all;
     for (const std::unique_ptr<Part>& p : parts_) {
+        if (p->next == p->messages)
+            throw ShardPartError(p->path + ": " + std::to_string(p->messages) + " messages, fewer than this bake's tracing sends "
+                                 "(a part of another nrad build?)");
         std::ifstream in(p->path, std::ios::binary);
         in.seekg(std::streamoff(p->offset));
         uint64_t n = 0;
@@ -257,13 +270,20 @@ std::vector<std::vector<uint8_t>> ShardGroup::allGather(const std::vector<uint8_
     return all;
 }
 
+void ShardGroup::startRecording() const {
+    for (const std::unique_ptr<Part>& p : parts_)
+        if (p->next != p->messages)
+            throw ShardPartError(p->path + ": " + std::to_string(p->messages) + " messages, more than this bake's tracing sends "
+                                 "(a part of another nrad build?)");
+    recording_ = true;
+}
+
 // ----- merge
 
 format::Asset mergeNetworkParts(const std::vector<std::string>& paths) {
     std::vector<ShardPartHeader> headers(paths.size());
-    std::vector<std::vector<uint8_t>> payloads;
-    for (size_t i = 0; i < paths.size(); ++i) {
-        payloads.push_back(readPayload(paths[i], headers[i]));
+    for (size_t i = 0; i < paths.size(); ++i) {  // every header first (a part at a time is held after that)
+        headers[i] = readShardPartHeader(paths[i], false);
         if (headers[i].kind != ShardPartKind::Networks)
             throw ShardPartError(paths[i] + ": a part of " + shardPartKindName(headers[i].kind) +
                                  "; merge takes the networks' parts (bake --shard K/N without --trace-only)");
@@ -278,7 +298,9 @@ format::Asset mergeNetworkParts(const std::vector<std::string>& paths) {
     nlohmann::json heldOut;
     for (size_t k = 0; k < order.size(); ++k) {
         const std::string& path = paths[order[k]];
-        ByteReader in(payloads[order[k]]);
+        ShardPartHeader header;
+        const std::vector<uint8_t> payload = readPayload(path, header);
+        ByteReader in(payload);
         std::vector<uint32_t> trained;
         std::vector<uint8_t> bytes;
         try {
@@ -297,9 +319,13 @@ format::Asset mergeNetworkParts(const std::vector<std::string>& paths) {
         if (m.is_object() && m.contains("held_out_relmse")) {
             h = m["held_out_relmse"];
             m.erase("held_out_relmse");
-            if (!h.is_array() || h.size() != a.voxels.size())
-                throw ShardPartError(path + ": its held-out errors are not one per network");
+            bool numbers = h.is_array() && h.size() == a.voxels.size();
+            for (size_t v = 0; numbers && v < h.size(); ++v) numbers = h[v].is_number() || h[v].is_null();
+            if (!numbers) throw ShardPartError(path + ": its held-out errors are not a number per network");
         }
+        if (k > 0 && h.is_null() != heldOut.is_null())
+            throw ShardPartError(path + ": " + (h.is_null() ? "no held-out errors where " + paths[order[0]] + " has them"
+                                                              : "held-out errors where " + paths[order[0]] + " has none"));
         const size_t per = a.topology.parameterCount();
         if (k == 0) {
             merged = a;

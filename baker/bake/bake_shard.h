@@ -21,7 +21,6 @@
 #pragma once
 
 #include <cstdint>
-#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -39,6 +38,8 @@ struct ShardId {
 // "K/N" with 0 <= K < N <= kMaxShards; false if not.
 constexpr uint32_t kMaxShards = 65536;
 bool parseShardId(const std::string& text, ShardId& id);
+
+constexpr size_t kPartHeaderSize = 56;
 
 enum class ShardPartKind : uint32_t { TracedSamples = 1, Networks = 2 };
 const char* shardPartKindName(ShardPartKind kind);
@@ -58,9 +59,9 @@ public:
 
 // Writes a part atomically (IoError on failure).
 void writeShardPart(const std::string& path, const ShardPartHeader& header, const std::vector<uint8_t>& payload);
-// The header of a part file, its payload's CRC checked (read in pieces, not held); ShardPartError if the file is not
-// a part or is damaged, IoError if it cannot be read.
-ShardPartHeader readShardPartHeader(const std::string& path);
+// The header of a part file, its payload's CRC checked (read in pieces, not held) unless !verifyPayload (the
+// header's own CRC always); ShardPartError if the file is not a part or is damaged, IoError if it cannot be read.
+ShardPartHeader readShardPartHeader(const std::string& path, bool verifyPayload = true);
 
 // Checks that `headers` (of files `paths`) are the N shards of one bake, each once: the kind, count, scene and
 // settings of `expected` (nullptr: of the first), no index twice, none missing. ShardPartError naming the files
@@ -72,18 +73,24 @@ void checkShardSet(const std::vector<std::string>& paths, const std::vector<Shar
 std::vector<uint8_t> tracedSamplesPayload(const std::vector<std::vector<uint8_t>>& messages);
 std::vector<uint8_t> networksPayload(const std::vector<uint32_t>& trained, const std::vector<uint8_t>& assetBytes);
 
-// A bake group for a shard: rank K of N whose allGather replays the stage-1 parts' messages, call by call, every
-// shard's in shard order (`traces()` is false: this process traces none of the points itself); once they are
-// used up, allGather records what it is given and returns nothing (the networks this shard trained).
+// A bake group for a shard: rank K of N. With stage-1 parts it first replays them: allGather returns their
+// messages, call by call, every shard's in shard order (`traces()` is false: this process traces none of the
+// points itself); after startRecording() (and from the start without parts) allGather records what it is given and
+// returns nothing (what a stage-1 shard traced; the networks a stage-2 shard trained).
 class ShardGroup : public BakeGroup {
 public:
-    // tracedParts: the stage-1 part files, in shard order (checkShardSet first); none: nothing to replay.
+    // tracedParts: the stage-1 part files, in shard order (checkShardSet first), each message's size checked
+    // against its payload; none: nothing to replay. ShardPartError, IoError.
     ShardGroup(ShardId shard, const std::vector<std::string>& tracedParts);
     ~ShardGroup() override;
     int rank() const override { return int(shard_.index); }
     int size() const override { return int(shard_.count); }
     bool traces() const override { return parts_.empty(); }
+    bool exchanges() const override { return true; }
+    // ShardPartError where a part runs out of messages.
     std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine) const override;
+    // Ends the replay; ShardPartError unless every part's messages were all used.
+    void startRecording() const;
     // What allGather recorded, in call order.
     const std::vector<std::vector<uint8_t>>& recorded() const { return recorded_; }
 
@@ -91,6 +98,7 @@ private:
     struct Part;
     ShardId shard_;
     std::vector<std::unique_ptr<Part>> parts_;
+    mutable bool recording_ = false;
     mutable std::vector<std::vector<uint8_t>> recorded_;
 };
 

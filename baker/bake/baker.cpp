@@ -347,7 +347,7 @@ VoxelTrainResult getResult(ByteReader& in) {
 
 // Every process's networks (`owner`) into `all` on every process, from each one's own in `all`.
 void exchangeResults(const BakeGroup* group, const std::vector<int>& owner, std::vector<VoxelTrainResult>& all) {
-    if (!group) return;  // (one process of a group too: a shard records its networks)
+    if (!group || !group->exchanges()) return;
     ByteWriter w;
     for (size_t k = 0; k < all.size(); ++k)
         if (owner[k] == group->rank()) {
@@ -663,8 +663,15 @@ BakeResult bakeShard(const Scene& scene, const BakeSettings& given, const ShardG
     const std::unique_ptr<BakeTracing> tracing = setupPhase(scene, settings, result);
     // Without stage-1 parts this shard traces every point itself; the partition it computes alone (as every shard
     // does); the networks it trains are its share, recorded by the group instead of exchanged.
-    const std::vector<TrainingSample> samples =
-        samplePhase(scene, settings, *tracing, progress, result, group.traces() ? nullptr : &group);
+    std::vector<TrainingSample> samples;
+    try {
+        samples = samplePhase(scene, settings, *tracing, progress, result, group.traces() ? nullptr : &group);
+    } catch (const ShardPartError&) {
+        throw;
+    } catch (const std::runtime_error& e) {  // the parts' messages are not what this bake's tracing sends
+        throw ShardPartError(std::string("the traced parts do not fit this bake (parts of another nrad build?): ") + e.what());
+    }
+    group.startRecording();
     const std::vector<int> owner = trainPhases(scene, settings, *tracing, samples, progress, {nullptr, nullptr, &group}, result);
     trained.clear();
     for (size_t k = 0; k < owner.size(); ++k)

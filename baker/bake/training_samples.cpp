@@ -288,11 +288,19 @@ void storeTargets(const PointStarts& ps, const VoxelGrid& grid, const std::vecto
     }
 }
 
+// Whether a sample received from elsewhere can be one this bake traced: its voxel in the grid, every value finite.
+bool plausible(const TrainingSample& t, uint64_t voxels) {
+    const glm::vec3* v[5] = {&t.position, &t.normal, &t.wo, &t.radiance, &t.reflectance};
+    for (const glm::vec3* x : v)
+        if (!std::isfinite(x->x) || !std::isfinite(x->y) || !std::isfinite(x->z)) return false;
+    return t.voxel < voxels;
+}
+
 // Every process's traced blocks into `out` and `valid`, and the counts of its paths summed into `stats` (the
 // points' counts, decided before tracing, are every process's own). In rounds of at most 64 blocks from each
 // process, so that what is in flight stays small beside `out` (all of it at once doubled a process's peak memory).
 void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector<TrainingSample>& out, std::vector<uint8_t>& valid,
-                  SampleStats& stats) {
+                  SampleStats& stats, uint64_t voxels) {
     {
         ByteWriter w;
         w.put(stats.rays);
@@ -329,6 +337,8 @@ void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector
                 for (size_t i = b.first; i < b.last; ++i) {
                     valid[i] = in.get<uint8_t>();
                     if (valid[i]) out[i] = in.get<TrainingSample>();
+                    if (valid[i] && !plausible(out[i], voxels))  // (read from a file where a shard replays them)
+                        throw std::runtime_error("bake group: a traced sample out of range or not finite");
                 }
             }
             if (!in.done()) throw std::runtime_error("bake group: a process traced other points");
@@ -399,7 +409,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         stats.noisyPoints += total.noisy;
     });
 
-    if (group) gatherShares(*group, shares, out, valid, stats);  // (one process of a group too: a shard records or replays)
+    if (group && group->exchanges()) gatherShares(*group, shares, out, valid, stats, grid.voxelCount());
 
     // The kept samples moved to the front of `out` in order, which then is the result (a copy, or shrinking it, would
     // hold both at once: 500 MB at the peak of a bake of 3.9 M samples).

@@ -655,18 +655,18 @@ std::vector<std::string> tracedParts(const std::string& dir, const ShardPartHead
     std::vector<ShardPartHeader> headers;
     std::error_code ec;
     std::vector<std::string> files;
-    for (const std::filesystem::directory_entry& e : std::filesystem::directory_iterator(dir, ec))
-        if (e.is_regular_file()) files.push_back(e.path().string());
+    std::filesystem::directory_iterator it(dir, ec), end;
+    for (; !ec && it != end; it.increment(ec))
+        if (it->is_regular_file(ec)) files.push_back(it->path().string());
     if (ec) throw IoError(dir + ": cannot be read: " + ec.message());
     std::sort(files.begin(), files.end());
     for (const std::string& f : files) {
         char magic[8] = {};
         std::ifstream(f, std::ios::binary).read(magic, sizeof magic);
-        if (std::string(magic, sizeof magic) != "NRADPART") continue;
-        const ShardPartHeader h = readShardPartHeader(f);
-        if (h.kind != ShardPartKind::TracedSamples) continue;
+        if (std::string(magic, sizeof magic) != "NRADPART") continue;  // not a part
+        if (readShardPartHeader(f, false).kind != ShardPartKind::TracedSamples) continue;  // the networks' (maybe being written)
         paths.push_back(f);
-        headers.push_back(h);
+        headers.push_back(readShardPartHeader(f));
     }
     if (paths.empty()) throw ShardPartError(dir + ": holds no parts of traced samples (bake --shard K/N --trace-only first)");
     checkShardSet(paths, headers, &expected);
@@ -698,6 +698,10 @@ int runShardBake(BakeOptions o, CLI::App* cmd) {
         if (int code = readConfig(o, cmd, configKeys)) return code;
     BakeSettings s;
     if (int code = settingsFromOptions(o, s)) return code;
+    if (o.dumpConfig) {
+        std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
+        return kExitOk;
+    }
     if (s.training == TrainingMethod::Integral) {
         std::fprintf(stderr, "nrad bake: --shard: %s\n", kShardsNotIntegral);
         return kExitUsage;
@@ -711,10 +715,13 @@ int runShardBake(BakeOptions o, CLI::App* cmd) {
     ShardPartHeader header;
     header.shard = shard;
     header.sceneHash = sceneHash(scene);
-    // Every setting as a config file would repeat it: shards of one bake are run with the same ones.
+    // Every setting as a config file would repeat it (shards of one bake are run with the same ones), and what
+    // the parts' bytes depend on in the build: a traced sample's layout and the byte order.
     const std::string settingsText = bakeSettingsTable(o).json().dump();
     header.settingsHash = kFnvOffsetBasis;
     fnv1a(header.settingsHash, settingsText.data(), settingsText.size());
+    const uint32_t layout[2] = {uint32_t(sizeof(TrainingSample)), 0x01020304u};
+    fnv1a(header.settingsHash, layout, sizeof layout);
 
     ProgressBar sampling("sampling", !o.quiet), partition("partition", !o.quiet), training("training", !o.quiet);
     const BakeProgress progress{[&](double f) { sampling.update(f); }, [&](double f) { training.update(f); }, {},
@@ -728,25 +735,26 @@ int runShardBake(BakeOptions o, CLI::App* cmd) {
             writeShardPart(o.output, header, payload);
             std::printf("traced %s of %s -> %s: %zu bytes, %llu rays; time: load %.2f s, setup %.2f s, sampling %.2f s (deciding the "
                         "points %.2f s, as every shard does)\n",
-                        name.c_str(), o.scene.c_str(), o.output.c_str(), payload.size() + 56,
+                        name.c_str(), o.scene.c_str(), o.output.c_str(), payload.size() + kPartHeaderSize,
                         (unsigned long long)r.sampleStats.rays.total(), load, r.timings.setup, r.timings.sampling,
                         r.sampleStats.planSeconds);
             return kExitOk;
         }
         header.kind = ShardPartKind::Networks;
         std::vector<std::string> parts;
-        if (!o.traced.empty()) {
-            ShardPartHeader expected = header;
-            expected.kind = ShardPartKind::TracedSamples;
-            try {
+        std::unique_ptr<ShardGroup> group;
+        try {
+            if (!o.traced.empty()) {
+                ShardPartHeader expected = header;
+                expected.kind = ShardPartKind::TracedSamples;
                 parts = tracedParts(o.traced, expected);
-            } catch (const IoError& e) {  // the parts cannot be read: input
-                throw ShardPartError(e.what());
             }
+            group = std::make_unique<ShardGroup>(shard, parts);
+        } catch (const IoError& e) {  // the parts cannot be read: input
+            throw ShardPartError(e.what());
         }
-        const ShardGroup group(shard, parts);
         std::vector<uint32_t> trained;
-        const BakeResult r = bakeShard(scene, s, group, progress, trained);
+        const BakeResult r = bakeShard(scene, s, *group, progress, trained);
         const std::vector<uint8_t> payload = networksPayload(trained, format::encode(r.asset));
         writeShardPart(o.output, header, payload);
         std::printf("baked %s of %s -> %s: %zu of %zu networks trained here, %zu samples (%s); time: load %.2f s, setup %.2f s, "

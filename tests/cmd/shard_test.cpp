@@ -183,6 +183,44 @@ TEST(ShardFlags, AreRefusedWhereTheyCannotWork) {
     EXPECT_FALSE(fs::exists(out));
 }
 
+// Parts whose CRC is right but whose messages are not what a bake sends (forged, or of another build).
+TEST(ShardGroupReplay, RefusesMessagesThatDoNotFit) {
+    const std::string dir = test::temporaryDirectory(), path = dir + "/t0.part";
+    ShardPartHeader h;
+    h.kind = ShardPartKind::TracedSamples;
+    h.shard = {0, 1};
+    ByteWriter w;  // one message announcing more bytes than the payload holds
+    w.put<uint64_t>(1);
+    w.put<uint64_t>(uint64_t(1) << 39);
+    writeShardPart(path, h, w.bytes);
+    try {
+        ShardGroup group({0, 1}, {path});
+        FAIL() << "a message running past the payload was accepted";
+    } catch (const ShardPartError& e) {
+        EXPECT_EQ(std::string(e.what()), path + ": damaged (message 0 runs past the payload)");
+    }
+    writeShardPart(path, h, tracedSamplesPayload({{1, 2, 3}}));  // one message: a replay of two calls runs short
+    {
+        const ShardGroup group({0, 1}, {path});
+        EXPECT_FALSE(group.traces());
+        const std::vector<std::vector<uint8_t>> first = group.allGather({});
+        ASSERT_EQ(first.size(), 1u);
+        EXPECT_EQ(first[0], (std::vector<uint8_t>{1, 2, 3}));
+        EXPECT_THROW(group.allGather({}), ShardPartError);
+    }
+    {
+        const ShardGroup group({0, 1}, {path});  // a message left unused when the recording starts
+        EXPECT_THROW(group.startRecording(), ShardPartError);
+    }
+    {
+        const ShardGroup group({0, 1}, {path});
+        group.allGather({});
+        group.startRecording();
+        EXPECT_TRUE(group.allGather({7}).empty());
+        EXPECT_EQ(group.recorded(), (std::vector<std::vector<uint8_t>>{{7}}));
+    }
+}
+
 TEST(ShardId, ParsesKOfN) {
     ShardId id;
     ASSERT_TRUE(parseShardId("0/1", id));
