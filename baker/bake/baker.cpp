@@ -419,6 +419,10 @@ void assembleAsset(const Scene& scene, const BakeSettings& settings, const BakeC
         a.voxels.push_back({v.voxel, v.scale});
         a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
     }
+    for (const VoxelTrainResult& v : result.volume) {
+        a.volumeVoxels.push_back({v.voxel, v.scale});
+        a.volumeWeights.insert(a.volumeWeights.end(), v.params.begin(), v.params.end());
+    }
     if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
 }
 
@@ -605,6 +609,29 @@ std::vector<TrainingSample> samplePhase(const Scene& scene, const BakeSettings& 
     return samples;
 }
 
+// The volume's networks (BakeSettings::volume) into result.volume: samples in every cell's free space, one network
+// per cell that has any, trained as the surfaces' are. Every process of a group computes them whole.
+void volumePhase(const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells, BakeResult& result) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const eval::Partition partition = cellPartition(cells, result.partition);
+    const std::vector<TrainingSample> samples =
+        generateVolumeSamples(tracing.tracer, partition, settings.volume, settings.samples.seed, settings.samples.maxDepth, result.volumeStats);
+    std::vector<uint32_t> cellOf(samples.size());
+    for (size_t i = 0; i < samples.size(); ++i) cellOf[i] = samples[i].voxel;
+    const std::vector<std::vector<VoxelSample>> byCell = samplesByNetwork(partition, cellOf, samples, [&](size_t i) {
+        return positionInCell(partition, result.partition, cells.adaptive, tracing.grid, samples[i].position, cellOf[i]);
+    });
+    std::vector<uint32_t> occupied;
+    std::vector<const std::vector<VoxelSample>*> lists;
+    for (uint32_t c = 0; c < uint32_t(byCell.size()); ++c)
+        if (!byCell[c].empty()) {
+            occupied.push_back(c);
+            lists.push_back(&byCell[c]);
+        }
+    result.volume = trainVoxels(occupied, lists, startTrainSettings(settings));
+    result.timings.volume = since(t0);
+}
+
 // The bake from its samples on: partition, training, rounds, the asset; returns each network's trainer.
 std::vector<int> trainPhases(const Scene& scene, const BakeSettings& settings, const BakeTracing& tracing,
                              const std::vector<TrainingSample>& samples, const BakeProgress& progress, const BakeGroups& groups,
@@ -620,6 +647,7 @@ std::vector<int> trainPhases(const Scene& scene, const BakeSettings& settings, c
     if (settings.training == TrainingMethod::Integral)
         integralRounds(scene, settings, tracing, cells, topology, progress, result, groups.training);
 
+    if (settings.volume.enabled) volumePhase(settings, tracing, cells, result);
     // A shard's asset holds only its networks: the others' places are zero (mergeNetworkParts fills them).
     for (VoxelTrainResult& v : result.voxels)
         if (v.params.empty()) v.params.assign(topology.parameterCount(), 0.0f);
@@ -716,6 +744,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                                  {"average_decay", in.averageDecay}};
         if (in.restarts() != 1) j["bake"]["training"]["start_restarts"] = in.restarts();  // only then: earlier assets keep their bytes
     }
+    if (settings.volume.enabled)  // only then, so that other assets keep their bytes
+        j["bake"]["volume"] = {{"points_per_cell", settings.volume.pointsPerCell}, {"paths", settings.volume.paths}};
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},
                                   {"budget_bytes", settings.partition.budgetBytes},

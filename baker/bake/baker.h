@@ -13,6 +13,7 @@
 #include "baker/bake/partition.h"
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_samples.h"
+#include "baker/bake/volume_samples.h"
 #include "baker/scene/scene.h"
 
 namespace nrad {
@@ -66,6 +67,9 @@ struct BakeSettings {
     IntegralSettings integral;
     format::WeightEncoding encoding = format::WeightEncoding::Float16;
     NeeSettings nee;  // light selection of the training paths (learned: trained on warm-up paths first)
+    // The light in the volume (VVOX, VWGT; issue 42): networks of the same cells for receivers that were not in
+    // the bake. Off by default (it costs about what the surfaces' sampling does).
+    VolumeSettings volume;
     bool metadata = true;
     // The command-line lighting this bake used (sun, engine-drawn lights) as a JSON object, recorded in the
     // metadata so that validate and render --asset can light the scene the same way. Empty: none.
@@ -74,6 +78,7 @@ struct BakeSettings {
 
 struct BakeTimings {
     double setup = 0.0, sampling = 0.0, partition = 0.0, training = 0.0;  // partition: refining the kd-tree (--budget)
+    double volume = 0.0;  // the volume's samples and networks
 };
 
 // One round of training within the integral equation (round 0: the Monte Carlo start).
@@ -95,6 +100,8 @@ struct BakeResult {
     double surfaceArea = 0.0;
     BakeTimings timings;
     std::vector<GenerationStats> generations;  // integral training: every round, the start included
+    std::vector<VoxelTrainResult> volume;  // the volume's networks (BakeSettings::volume), in cell order
+    VolumeStats volumeStats;
 };
 
 struct BakeProgress {

@@ -94,6 +94,7 @@ struct BakeOptions {
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
+    uint32_t volumePoints = 0, volumePaths = defaults().volume.paths;  // 0 points: no volume networks
     bool noMetadata = !defaults().metadata, noDemodulate = !defaults().train.demodulate, noWallSplits = !defaults().walls.enabled;
     LightingOptions lighting = bakeLighting();
     std::string training = trainingMethodName(defaults().training);
@@ -239,6 +240,10 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--min-leaf-samples", &o.minLeafSamples, "With --budget: training samples a leaf with surface keeps at least");
     t.add("--seed", &o.seed, "Seed (sampling, split, initialisation, order)");
     addImportSettings(t, o.importLimits);
+    t.add("--volume-points", &o.volumePoints,
+          "Also bake the light in the volume for receivers not in the bake (moving objects): points tried per cell "
+          "(about 1000); 0: none");
+    t.add("--volume-paths", &o.volumePaths, "With --volume-points: paths per volume point");
     t.add("--no-metadata", &o.noMetadata, "Leave out the asset's JSON metadata section");
     t.add("--no-wall-splits", &o.noWallSplits,
           "Without --budget: keep the grid's cells whole where a wall divides one (by default such a cell is split at the "
@@ -344,6 +349,13 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.train.learningRate = o.learningRate;
     s.train.seed = o.seed;
     s.metadata = !o.noMetadata;
+    s.volume.enabled = o.volumePoints > 0;
+    s.volume.pointsPerCell = o.volumePoints;
+    s.volume.paths = o.volumePaths;
+    if (s.volume.enabled && o.volumePaths == 0) return usage("--volume-paths: expected at least 1");
+    if (s.volume.enabled && o.volumePoints > 1000000) return usage("--volume-points: expected at most 1000000");
+    if (s.volume.enabled && s.partition.budgetBytes > 0)
+        return usage("--volume-points with --budget: the volume's networks are not in a budget yet; bake them on a grid (--grid)");
     s.train.demodulate = !o.noDemodulate;
     s.walls.enabled = !o.noWallSplits;
     s = resolvedBakeSettings(s);
@@ -507,6 +519,20 @@ void printRoundsAndPartition(const BakeSettings& s, const BakeResult& r, size_t 
     }
 }
 
+// The volume's networks (--volume-points), a line.
+void printVolume(const BakeResult& r) {
+    if (r.volumeStats.tried == 0) return;
+    double mean = 0.0, worst = 0.0;
+    for (const VoxelTrainResult& v : r.volume) {
+        mean += v.heldOutRelMse / double(r.volume.size());
+        worst = std::max(worst, v.heldOutRelMse);
+    }
+    std::printf("volume: %zu networks of the light for receivers not in the bake, from %llu points tried in the cells (%llu "
+                "inside closed solids, dropped), held-out relMSE mean %.4g worst %.4g; %.2f s\n",
+                r.volume.size(), (unsigned long long)r.volumeStats.tried, (unsigned long long)r.volumeStats.inside, mean, worst,
+                r.timings.volume);
+}
+
 // --stats: the kd-tree and its leaves.
 nlohmann::json partitionStats(const BakeSettings& s, const BakeResult& r) {
     const AdaptivePartition& ap = r.partition;
@@ -588,6 +614,14 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     BakeOptions given = o;
     j["config"] = bakeSettingsTable(given).json();  // a --config file that repeats this bake
     j["voxels"] = voxelStats(r);
+    if (s.volume.enabled) {
+        nlohmann::json cells = nlohmann::json::array();
+        for (const VoxelTrainResult& v : r.volume)
+            cells.push_back({{"cell", v.voxel}, {"samples", v.trainCount + v.heldOutCount}, {"held_out_relmse", v.heldOutRelMse},
+                             {"train_relmse", v.trainRelMse}, {"scale", v.scale}});
+        j["volume"] = {{"points_tried", r.volumeStats.tried}, {"points_inside_solids", r.volumeStats.inside},
+                       {"rays", r.volumeStats.rays}, {"seconds", r.timings.volume}, {"networks", cells}};
+    }
     try {
         writeTextAtomically(o.stats, j.dump(1) + "\n");
     } catch (const IoError& e) {
@@ -644,6 +678,7 @@ int runBake(BakeOptions o, CLI::App* cmd, const BakeGroup* group) {
                     group->size(), r.sampleStats.planSeconds, group->exchangeSeconds());
     warnLargeHeldOut(scene, r, h);
     printRoundsAndPartition(s, r, bytes.size());
+    printVolume(r);
     if (!o.stats.empty()) return writeBakeStats(o, s, scene, r, h, bytes.size(), times);
     return kExitOk;
 }

@@ -61,6 +61,13 @@ int runInfo(const std::string& path) {
                 (a.header.flags & format::kFlagScatteredRadiance) ? "scattered radiance L - Le (shading adds the surface's own emission)"
                                                                   : "outgoing radiance L (emission included)",
                 (a.header.flags & format::kFlagDemodulated) ? ", divided by the surface's reflectance (shading multiplies it back)" : "");
+    if (!a.volumeVoxels.empty())
+        std::printf("volume: %zu of %llu cells with a network of the light for receivers not in the bake (E(x, n) / pi; %llu "
+                    "bytes)\n",
+                    a.volumeVoxels.size(), (unsigned long long)a.cellCount(),
+                    (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.volumeVoxels.size()));
+    else
+        std::printf("volume: none (only the baked surfaces answer; bake --volume-points for moving objects)\n");
     if (a.header.flags & format::kFlagBlended)
         std::printf("blending: neighbouring networks blended within %g voxels of every interior face (no seams)\n", a.grid.blendBand);
     else

@@ -124,6 +124,12 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
                         a->denseLookup.size() * sizeof(int32_t) +
                         a->partition.bytes() +
                         a->metadataCopy.size();
+        if (a->volume) {
+            r.volumeNetworks = uint32_t(a->volume->asset.voxels.size());
+            r.memoryBytes += sizeof(NradAsset_) + a->volume->asset.weights.size() * sizeof(float) +
+                             a->volume->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
+                             a->volume->denseLookup.size() * sizeof(int32_t) + a->volume->partition.bytes();
+        }
         *info = r;
         return NRAD_OK;
     });
@@ -163,6 +169,18 @@ NradStatus nradEvaluateBatch(NradAsset a, size_t count, const float* positions, 
         rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
                       {directions, directions + 1, directions + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
         return rt::evaluateBatch(*a, count, v);
+    });
+}
+
+NradStatus nradEvaluateVolumeBatch(NradAsset a, size_t count, const float* positions, const float* normals, float* rgb,
+                                   uint8_t* pointFlags) {
+    if (!a || !a->volume || (count > 0 && (!positions || !normals || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (count == 0) return NRAD_OK;
+    return guarded([&] {
+        // The volume's networks take the normal as the direction too (what they were trained with).
+        rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
+                      {normals, normals + 1, normals + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
+        return rt::evaluateBatch(*a->volume, count, v);
     });
 }
 
@@ -258,6 +276,7 @@ NradStatus nradSetAssetKernel(NradAsset a, NradKernel kernel) {
     if (!a || (kernel != NRAD_KERNEL_AUTO && !rt::findKernel(kernel))) return NRAD_ERROR_INVALID_ARGUMENT;
     if (kernel != NRAD_KERNEL_AUTO && !rt::kernelSupported(kernel)) return NRAD_ERROR_UNSUPPORTED_KERNEL;
     a->kernel.store(kernel, std::memory_order_relaxed);
+    if (a->volume) a->volume->kernel.store(kernel, std::memory_order_relaxed);
     return NRAD_OK;
 }
 

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -27,4 +28,7 @@ struct NradAsset_ {
     uint32_t rectOffset[3] = {0, 0, 0};
     std::vector<float> scales;  // per network: the voxel's output scale
     std::atomic<int> kernel{NRAD_KERNEL_AUTO};  // nradSetAssetKernel; AUTO: the process-wide choice
+    // The volume's networks (VVOX, VWGT) as an asset of their own (the same cells, topology and tables, no
+    // metadata): what nradEvaluateVolumeBatch evaluates with the normal as the direction. Null: none.
+    std::unique_ptr<NradAsset_> volume;
 };

@@ -129,6 +129,24 @@ void rectilinearTable(const eval::Partition& part, std::vector<int32_t>& axis, s
             }
 }
 
+// The tables evaluation reads: scales, the partition (taking the tree), the kd-tree's tables, the dense lookup.
+void prepareTables(NradAsset_& a) {
+    for (const format::VoxelEntry& e : a.asset.voxels) a.scales.push_back(e.scale);
+    a.partition = eval::Partition(a.asset);
+    std::vector<format::TreeNode>().swap(a.asset.tree);  // the partition holds it
+    if (!a.partition.tree.empty()) {
+        a.treeLeaves = treeLeafBoxes(a.partition);
+        tagTree(a.partition, a.treeNodes, a.treeSplits, a.treeStarts);
+        rectilinearTable(a.partition, a.rectAxis, a.rectLeaves, a.rectOffset);  // empty when too large
+    }
+    // A dense cell -> network table when it is small next to the networks themselves; else binary search.
+    uint64_t voxels = a.partition.cells;
+    if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a.asset.voxels.size()) * 64)) {
+        a.denseLookup.assign(size_t(voxels), -1);
+        for (size_t i = 0; i < a.asset.voxels.size(); ++i) a.denseLookup[a.asset.voxels[i].index] = int32_t(i);
+    }
+}
+
 }  // namespace
 
 void writeMessage(char* message, size_t size, const std::string& text) {
@@ -170,20 +188,20 @@ NradStatus loadAsset(const void* data, size_t size, uint32_t flags, NradAsset* o
         }
         std::string().swap(a->asset.metadata);
     }
-    for (const format::VoxelEntry& e : a->asset.voxels) a->scales.push_back(e.scale);
-    a->partition = eval::Partition(a->asset);
-    std::vector<format::TreeNode>().swap(a->asset.tree);  // the partition holds it
-    if (!a->partition.tree.empty()) {
-        a->treeLeaves = treeLeafBoxes(a->partition);
-        tagTree(a->partition, a->treeNodes, a->treeSplits, a->treeStarts);
-        rectilinearTable(a->partition, a->rectAxis, a->rectLeaves, a->rectOffset);  // empty when too large
+    if (!a->asset.volumeVoxels.empty()) {  // the volume's networks: an asset of the same cells
+        a->volume = std::make_unique<NradAsset_>();
+        format::Asset& v = a->volume->asset;
+        v.header = a->asset.header;
+        v.grid = a->asset.grid;
+        v.topology = a->asset.topology;
+        v.tree = a->asset.tree;
+        v.leafCount = a->asset.leafCount;
+        v.voxels.swap(a->asset.volumeVoxels);
+        v.weights.swap(a->asset.volumeWeights);
+        a->volume->paramsPerNetwork = a->paramsPerNetwork;
+        prepareTables(*a->volume);
     }
-    // A dense cell -> network table when it is small next to the networks themselves; else binary search.
-    uint64_t voxels = a->partition.cells;
-    if (voxels <= std::max<uint64_t>(1u << 16, uint64_t(a->asset.voxels.size()) * 64)) {
-        a->denseLookup.assign(size_t(voxels), -1);
-        for (size_t i = 0; i < a->asset.voxels.size(); ++i) a->denseLookup[a->asset.voxels[i].index] = int32_t(i);
-    }
+    prepareTables(*a);
     *out = a;
     writeMessage(message, messageSize, "ok");
     return NRAD_OK;

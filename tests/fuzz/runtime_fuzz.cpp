@@ -181,6 +181,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             nrm[i] = float(int(data[(i * 7) % size]) - 128) / 128.0f;
             dir[i] = float(int(data[(i * 13) % size]) - 128) / 128.0f;
         }
+        if (info.volumeNetworks > 0) {  // the volume's networks: the same safety
+            if (nradEvaluateVolumeBatch(asset, n, p.data(), nrm.data(), rgb.data(), pf.data()) != NRAD_OK) std::abort();
+            for (float v : rgb)
+                if (!std::isfinite(v) || v < 0.0f) std::abort();
+        } else if (nradEvaluateVolumeBatch(asset, n, p.data(), nrm.data(), rgb.data(), pf.data()) != NRAD_ERROR_INVALID_ARGUMENT) {
+            std::abort();
+        }
         nradEvaluateBatch(asset, n, p.data(), nrm.data(), dir.data(), rgb.data(), pf.data());
         for (float v : rgb)
             if (!std::isfinite(v) || v < 0.0f) std::abort();

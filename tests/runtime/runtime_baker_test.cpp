@@ -16,6 +16,7 @@
 #include "baker/nn/mlp.h"
 #include "baker/scene/gltf_loader.h"
 #include "support/test_paths.h"
+#include "support/volume_query.h"
 
 namespace nrad {
 namespace {
@@ -95,6 +96,64 @@ TEST(Runtime, AgreesWithTheBakersForwardPassOnABakedCornellBox) {
         EXPECT_LT(worst, enc == format::WeightEncoding::Float32 ? 1e-4 : 5e-3) << "encoding " << int(enc);
     }
     nradSelectKernel(NRAD_KERNEL_AUTO);
+}
+
+// nradEvaluateVolumeBatch against the baker's reading of the same asset's volume networks (the decoded weights,
+// nrad/eval.h's blending), on every kernel; and an asset without them refused.
+TEST(Runtime, VolumeQueryAgreesWithTheBaker) {
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    BakeSettings s;
+    s.samples.points = 2000;
+    s.samples.paths = 4;
+    s.train.epochs = 60;
+    s.volume.enabled = true;
+    s.volume.pointsPerCell = 200;
+    s.volume.paths = 4;
+    const std::vector<uint8_t> bytes = format::encode(bakeScene(scene, s).asset);
+    format::Asset decoded;
+    ASSERT_EQ(format::decode(bytes.data(), bytes.size(), decoded), format::DecodeStatus::Ok);
+    ASSERT_FALSE(decoded.volumeVoxels.empty());
+    const test::VolumeQuery query(decoded);
+    const float scale = query.largestScale();
+    nrad::Asset asset;
+    ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    NradAssetInfo info;
+    ASSERT_EQ(nradGetAssetInfo(asset.get(), &info), NRAD_OK);
+    EXPECT_EQ(info.volumeNetworks, decoded.volumeVoxels.size());
+    SplitMix64 rng(7);
+    const size_t n = 500;
+    std::vector<float> positions(3 * n), normals(3 * n), rgb(3 * n);
+    for (size_t i = 0; i < n; ++i) {
+        glm::vec3 nn(rng.uniform() - 0.5f, rng.uniform() - 0.5f, rng.uniform() - 0.5f);
+        nn = glm::normalize(nn + glm::vec3(0.0f, 1e-3f, 0.0f));
+        for (int k = 0; k < 3; ++k) {
+            positions[3 * i + size_t(k)] = decoded.grid.lower[k] + rng.uniform() * (decoded.grid.upper[k] - decoded.grid.lower[k]);
+            normals[3 * i + size_t(k)] = nn[k];
+        }
+    }
+    double worst = 0.0;
+    for (NradKernel k : kernels()) {
+        nradSelectKernel(k);
+        std::vector<uint8_t> flags(n, 255);
+        ASSERT_EQ(nradEvaluateVolumeBatch(asset.get(), n, positions.data(), normals.data(), rgb.data(), flags.data()), NRAD_OK);
+        for (size_t i = 0; i < n; ++i) {
+            ASSERT_EQ(flags[i], uint8_t(NRAD_POINT_OK));
+            const glm::vec3 p(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
+            const glm::vec3 nn(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
+            const glm::vec3 expected = query(p, nn);
+            for (int c = 0; c < 3; ++c)
+                worst = std::max(worst, double(std::abs(rgb[3 * i + size_t(c)] - expected[c])) / std::max(std::abs(expected[c]), scale));
+        }
+    }
+    nradSelectKernel(NRAD_KERNEL_AUTO);
+    std::printf("volume query: worst relative difference %.3g\n", worst);
+    EXPECT_LT(worst, 1e-4);  // the same fp16-decoded weights on both sides: only the order of the sums differs
+    // An asset without volume networks has no volume query.
+    s.volume.enabled = false;
+    const std::vector<uint8_t> plain = format::encode(bakeScene(scene, s).asset);
+    nrad::Asset without;
+    ASSERT_EQ(without.loadFromMemory(plain.data(), plain.size()), NRAD_OK);
+    EXPECT_EQ(nradEvaluateVolumeBatch(without.get(), n, positions.data(), normals.data(), rgb.data(), nullptr), NRAD_ERROR_INVALID_ARGUMENT);
 }
 
 }  // namespace

@@ -21,8 +21,9 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 3;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
-                                       // 2.2: the kd-tree partition (TREE), 2.3: planes no band crosses (TreeNode::hard)
+constexpr uint16_t kVersionMinor = 4;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
+                                       // 2.2: the kd-tree partition (TREE), 2.3: planes no band crosses (TreeNode::hard),
+                                       // 2.4: the light in the volume (VVOX, VWGT)
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
@@ -57,6 +58,8 @@ constexpr uint32_t kSectionVoxels = fourcc('V', 'O', 'X', 'L');
 constexpr uint32_t kSectionWeights = fourcc('W', 'G', 'H', 'T');
 constexpr uint32_t kSectionMetadata = fourcc('M', 'E', 'T', 'A');
 constexpr uint32_t kSectionTree = fourcc('T', 'R', 'E', 'E');
+constexpr uint32_t kSectionVolumeVoxels = fourcc('V', 'V', 'O', 'X');
+constexpr uint32_t kSectionVolumeWeights = fourcc('V', 'W', 'G', 'T');
 
 enum class Activation : uint32_t { ReLU = 1 };
 // How the last layer's value y becomes radiance: L = scale * max(0, y), or L = scale * (exp(y) - 1) for
@@ -122,6 +125,10 @@ struct Topology {  // TOPO: u32 inputs, u32 outputs, u32 hiddenLayers, u32 activ
 // VOXL: u32 occupiedCount, then occupiedCount records of 8 bytes: u32 linear voxel index (strictly
 // increasing), f32 output scale (finite, > 0). WGHT: the networks in VOXL order, parameterCount weights each,
 // in the topology's encoding. META: UTF-8 JSON (optional).
+// VVOX and VWGT (version 2.4, optional, both or neither): the volume's networks, laid out as VOXL and WGHT (the
+// same topology and encoding, cells of the same partition, their own occupied list): for a point x anywhere in
+// the scene's volume and a unit normal n, the radiance a white Lambertian receiver at x facing n scatters,
+// E(x, n) / pi (nrad/eval.h, volume query). A 2.3 reader passes them over and loads the surfaces.
 struct VoxelEntry {
     uint32_t index = 0;  // x + dims[0] * (y + dims[1] * z)
     float scale = 1.0f;
@@ -246,6 +253,7 @@ enum class DecodeStatus {
     TrailingBytes,  // bytes after the last section
     BadTree,  // TREE without kFlagTree (or the reverse), or a tree that is cyclic, shared, out of range, too
               // deep, or whose splits leave an empty or overlapping leaf
+    BadVolume,  // VVOX without VWGT (or the reverse), or either invalid as VOXL or WGHT would be
 };
 
 inline const char* decodeStatusString(DecodeStatus s) {
@@ -265,6 +273,7 @@ inline const char* decodeStatusString(DecodeStatus s) {
         case DecodeStatus::BadWeights: return "invalid weights";
         case DecodeStatus::TrailingBytes: return "trailing bytes after the last section";
         case DecodeStatus::BadTree: return "invalid partition tree";
+        case DecodeStatus::BadVolume: return "invalid volume networks";
     }
     return "unknown status";
 }
@@ -279,6 +288,9 @@ struct Asset {
     std::string metadata;  // JSON text, empty if the section is absent
     std::vector<TreeNode> tree;  // with kFlagTree: the partition; empty: the uniform grid
     uint32_t leafCount = 0;  // the tree's leaves (with kFlagTree), else 0
+    // The volume's networks (VVOX, VWGT; empty: none): the same cells, topology and encoding as the surfaces'.
+    std::vector<VoxelEntry> volumeVoxels;
+    std::vector<float> volumeWeights;
     // What VOXL indexes: the tree's leaves, or the grid's voxels.
     uint64_t cellCount() const { return tree.empty() ? grid.voxelCount() : uint64_t(leafCount); }
 };
@@ -401,7 +413,7 @@ struct SectionSpan {
     uint64_t size = 0;
 };
 struct SectionSpans {
-    SectionSpan grid, topo, voxl, wght, meta, tree;
+    SectionSpan grid, topo, voxl, wght, meta, tree, vvox, vwgt;
     SectionSpan* of(uint32_t type) {  // null for a type this version does not know
         switch (type) {
             case kSectionGrid: return &grid;
@@ -410,6 +422,8 @@ struct SectionSpans {
             case kSectionWeights: return &wght;
             case kSectionMetadata: return &meta;
             case kSectionTree: return &tree;
+            case kSectionVolumeVoxels: return &vvox;
+            case kSectionVolumeWeights: return &vwgt;
             default: return nullptr;
         }
     }
@@ -561,6 +575,13 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     if (DecodeStatus s = decodeVoxels(spans.voxl, cells, voxels); s != DecodeStatus::Ok) return s;
     std::vector<float> weights;
     if (DecodeStatus s = decodeWeights(spans.wght, t, uint32_t(voxels.size()), weights); s != DecodeStatus::Ok) return s;
+    std::vector<VoxelEntry> volumeVoxels;
+    std::vector<float> volumeWeights;
+    if ((spans.vvox.at != nullptr) != (spans.vwgt.at != nullptr)) return DecodeStatus::BadVolume;
+    if (spans.vvox.at) {
+        if (decodeVoxels(spans.vvox, cells, volumeVoxels) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
+        if (decodeWeights(spans.vwgt, t, uint32_t(volumeVoxels.size()), volumeWeights) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
+    }
 
     out.header = h;
     out.grid = g;
@@ -570,6 +591,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     out.metadata = spans.meta.at ? std::string(reinterpret_cast<const char*>(spans.meta.at), size_t(spans.meta.size)) : std::string();
     out.tree = std::move(nodes);
     out.leafCount = leafCount;
+    out.volumeVoxels = std::move(volumeVoxels);
+    out.volumeWeights = std::move(volumeWeights);
     return DecodeStatus::Ok;
 }
 
@@ -589,16 +612,20 @@ inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i =
 }  // namespace detail
 
 // The size encode() gives an asset of `networks` networks of topology t, a tree of `treeNodes` nodes (0: no
-// TREE section) and `metadataBytes` of metadata (0: no META section): for writers that must fit a byte budget.
-inline uint64_t encodedSize(const Topology& t, uint64_t networks, uint64_t treeNodes, uint64_t metadataBytes) {
-    const uint64_t sections[6] = {40, 24 + 4 * uint64_t(t.hiddenWidths.size()), 4 + 8 * networks,
-                                  networks * t.parameterCount() * t.bytesPerWeight(), treeNodes ? 4 + 8 * treeNodes : 0,
-                                  metadataBytes};
-    uint64_t count = 4 + (treeNodes ? 1 : 0) + (metadataBytes ? 1 : 0), size = kHeaderSize + count * kSectionRecordSize;
-    for (int i = 0; i < 6; ++i) {
-        if (i >= 4 && sections[i] == 0) continue;
-        size = (size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment + sections[i];
-    }
+// TREE section), `metadataBytes` of metadata (0: no META section) and `volumeNetworks` of the volume's (0: no
+// VVOX and VWGT): for writers that must fit a byte budget.
+inline uint64_t encodedSize(const Topology& t, uint64_t networks, uint64_t treeNodes, uint64_t metadataBytes,
+                            uint64_t volumeNetworks = 0) {
+    const uint64_t perNetwork = t.parameterCount() * t.bytesPerWeight();
+    const uint64_t sections[8] = {40, 24 + 4 * uint64_t(t.hiddenWidths.size()), 4 + 8 * networks, networks * perNetwork,
+                                  treeNodes ? 4 + 8 * treeNodes : 0, volumeNetworks ? 4 + 8 * volumeNetworks : 0,
+                                  volumeNetworks * perNetwork, metadataBytes};
+    const bool present[8] = {true, true, true, true, treeNodes > 0, volumeNetworks > 0, volumeNetworks > 0, metadataBytes > 0};
+    uint64_t count = 0;
+    for (bool p : present) count += p ? 1 : 0;
+    uint64_t size = kHeaderSize + count * kSectionRecordSize;
+    for (int i = 0; i < 8; ++i)
+        if (present[i]) size = (size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment + sections[i];
     return size;
 }
 
@@ -630,27 +657,29 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
         sections.push_back(std::move(s));
         types.push_back(kSectionTopology);
     }
-    {
+    const auto voxelSection = [](const std::vector<VoxelEntry>& voxels) {
         std::vector<uint8_t> s;
-        wr32(s, uint32_t(a.voxels.size()));
-        for (const VoxelEntry& v : a.voxels) {
+        wr32(s, uint32_t(voxels.size()));
+        for (const VoxelEntry& v : voxels) {
             wr32(s, v.index);
             wrf32(s, v.scale);
         }
-        sections.push_back(std::move(s));
-        types.push_back(kSectionVoxels);
-    }
-    {
+        return s;
+    };
+    const auto weightSection = [&a](const std::vector<float>& weights) {
         std::vector<uint8_t> s;
-        for (float w : a.weights) {
+        for (float w : weights) {
             if (a.topology.weightEncoding == WeightEncoding::Float16)
                 wr16(s, floatToHalf(w));
             else
                 wrf32(s, w);
         }
-        sections.push_back(std::move(s));
-        types.push_back(kSectionWeights);
-    }
+        return s;
+    };
+    sections.push_back(voxelSection(a.voxels));
+    types.push_back(kSectionVoxels);
+    sections.push_back(weightSection(a.weights));
+    types.push_back(kSectionWeights);
     if (a.header.flags & kFlagTree) {
         std::vector<uint8_t> s;
         wr32(s, uint32_t(a.tree.size()));
@@ -660,6 +689,12 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
         }
         sections.push_back(std::move(s));
         types.push_back(kSectionTree);
+    }
+    if (!a.volumeVoxels.empty()) {
+        sections.push_back(voxelSection(a.volumeVoxels));
+        types.push_back(kSectionVolumeVoxels);
+        sections.push_back(weightSection(a.volumeWeights));
+        types.push_back(kSectionVolumeWeights);
     }
     if (!a.metadata.empty()) {  // last, so that a borrowed buffer's metadata is its tail
         sections.emplace_back(a.metadata.begin(), a.metadata.end());
@@ -672,7 +707,7 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
     const bool hard = (a.header.flags & kFlagTree) && hardPlanes(a.tree) > 0;
-    const uint16_t minor = hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
+    const uint16_t minor = !a.volumeVoxels.empty() ? 4 : hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);
@@ -711,6 +746,12 @@ inline std::vector<uint8_t> encode(const Asset& a) {
         NRAD_CHECK(std::isfinite(a.voxels[i].scale) && a.voxels[i].scale > 0.0f);
     }
     for (float w : a.weights) NRAD_CHECK(std::isfinite(w));
+    NRAD_CHECK(a.volumeWeights.size() == a.volumeVoxels.size() * a.topology.parameterCount());
+    for (size_t i = 0; i < a.volumeVoxels.size(); ++i) {
+        NRAD_CHECK(a.volumeVoxels[i].index < cells && (i == 0 || a.volumeVoxels[i].index > a.volumeVoxels[i - 1].index));
+        NRAD_CHECK(std::isfinite(a.volumeVoxels[i].scale) && a.volumeVoxels[i].scale > 0.0f);
+    }
+    for (float w : a.volumeWeights) NRAD_CHECK(std::isfinite(w));
     for (int k = 0; k < 3; ++k) NRAD_CHECK(std::isfinite(a.grid.lower[k]) && std::isfinite(a.grid.upper[k]));
     return encodeUnchecked(a);
 }

@@ -104,7 +104,8 @@ typedef struct NradAssetInfo {
     float blendBand;           /* with NRAD_CONTENT_BLENDED: half-width of the blending band, in voxels; else 0 */
     uint64_t fileBytes;        /* size of the asset data */
     uint64_t memoryBytes;      /* memory held by the handle */
-    uint32_t reserved[16];     /* zero; later minor versions add fields here, so the struct keeps its size */
+    uint32_t volumeNetworks;   /* networks of the light in the volume (nradEvaluateVolumeBatch); 0: none (format 2.4) */
+    uint32_t reserved[15];     /* zero; later minor versions add fields here, so the struct keeps its size */
 } NradAssetInfo;
 
 /* contentFlags: the radiance returned excludes the surface's own emission (add it when shading). */
@@ -157,6 +158,15 @@ typedef struct NradBatchSoA {
     uint8_t* pointFlags; /* may be null */
 } NradBatchSoA;
 NRAD_API NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const NradBatchSoA* batch);
+
+/* The light in the volume, for receivers that were not in the bake (moving objects; assets baked with
+ * `nrad bake --volume-points`): per point (world space, anywhere in the grid) and unit normal, the radiance a
+ * white Lambertian receiver there facing the normal scatters, E(x, n) / pi (E: the irradiance on a plane through
+ * x facing n, from everything the asset holds: engine-drawn direct light excluded, as on the surfaces). A diffuse
+ * receiver of albedo a reflects a times it. Interleaved layout as nradEvaluateBatch; point flags as there.
+ * NRAD_ERROR_INVALID_ARGUMENT for an asset without volume networks (NradAssetInfo::volumeNetworks 0). */
+NRAD_API NradStatus nradEvaluateVolumeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+                                            float* rgb, uint8_t* pointFlags);
 
 /* ----- shading --------------------------------------------------------------------------------------- */
 

@@ -1,0 +1,124 @@
+#include "baker/bake/volume_samples.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+
+#include <tbb/parallel_for.h>
+
+#include "baker/nn/random.h"
+
+namespace nrad {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+glm::vec3 uniformDirection(SplitMix64& r) {
+    const float z = 1.0f - 2.0f * r.uniform(), phi = 2.0f * kPi * r.uniform();
+    const float s = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
+// The world box of cell c.
+void cellBox(const eval::Partition& partition, uint64_t c, glm::vec3& lo, glm::vec3& hi) {
+    const format::Grid& g = partition.grid;
+    uint32_t a[3], b[3];
+    if (partition.tree.empty()) {
+        const uint64_t x = c % g.dims[0], y = (c / g.dims[0]) % g.dims[1], z = c / (uint64_t(g.dims[0]) * g.dims[1]);
+        const uint64_t coord[3] = {x, y, z};
+        for (int k = 0; k < 3; ++k) a[k] = uint32_t(coord[k]), b[k] = uint32_t(coord[k]) + 1;
+    } else {
+        for (int k = 0; k < 3; ++k) a[k] = partition.boxes[c].lo[k], b[k] = partition.boxes[c].hi[k];
+    }
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = g.lower[k] + float(a[k]) / partition.factor[k];
+        hi[k] = g.lower[k] + float(b[k]) / partition.factor[k];
+    }
+}
+
+}  // namespace
+
+SurfaceInteraction receiverAt(const glm::vec3& p, const glm::vec3& n) {
+    SurfaceInteraction si;
+    si.p = p;
+    si.ng = si.ns = si.wo = n;
+    si.frontFace = true;
+    si.bsdf.baseColor = glm::vec3(1.0f);
+    si.bsdf.metallic = 0.0f;
+    si.bsdf.roughness = 1.0f;
+    si.bsdf.specular = 0.0f;  // no specular layer: Lambertian, albedo 1
+    si.bsdf.transmission = 0.0f;
+    si.emission = glm::vec3(0.0f);
+    si.margin = 0.0f;
+    return si;
+}
+
+std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, const eval::Partition& partition,
+                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const uint64_t cells = partition.cells;
+    const uint32_t per = settings.pointsPerCell;
+    std::vector<TrainingSample> all(cells * per);
+    std::vector<uint8_t> kept(all.size(), 0);
+    std::atomic<uint64_t> inside{0}, rays{0};
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, cells, 1), [&](const tbb::blocked_range<uint64_t>& range) {
+        RayCounters counters;
+        for (uint64_t c = range.begin(); c != range.end(); ++c) {
+            glm::vec3 lo, hi;
+            cellBox(partition, c, lo, hi);
+            std::vector<SurfaceInteraction> starts;
+            std::vector<size_t> slots;
+            starts.reserve(per);
+            for (uint32_t i = 0; i < per; ++i) {
+                SplitMix64 r((uint64_t(seed) << 40) ^ (c * 0x9e3779b97f4a7c15ull) ^ (uint64_t(i) * 0xd1b54a32d192ed03ull) ^ 0x766f6c756d65ull);
+                const glm::vec3 p = lo + (hi - lo) * glm::vec3(r.uniform(), r.uniform(), r.uniform());
+                bool out = true;
+                for (int d = 0; d < 2 && out; ++d) out = tracer.viewable(receiverAt(p, uniformDirection(r)));
+                counters.shadow += 2;
+                if (!out) {
+                    ++inside;
+                    continue;
+                }
+                starts.push_back(receiverAt(p, uniformDirection(r)));
+                slots.push_back(size_t(c * per + i));
+            }
+            std::vector<PathStart> paths;
+            paths.reserve(starts.size() * settings.paths);
+            for (size_t k = 0; k < starts.size(); ++k)
+                for (uint32_t j = 0; j < settings.paths; ++j)
+                    paths.push_back({&starts[k], uint32_t(slots[k] * 0x9e3779b1u) ^ seed ^ 0x5f3759dfu, j});
+            std::vector<glm::vec3> estimates(paths.size());
+            if (!paths.empty()) tracer.estimate(paths.data(), paths.size(), maxDepth, nullptr, 1, counters, estimates.data());
+            for (size_t k = 0; k < starts.size(); ++k) {
+                glm::dvec3 sum(0.0);
+                uint32_t n = 0;
+                for (uint32_t j = 0; j < settings.paths; ++j) {
+                    const glm::vec3& L = estimates[k * settings.paths + j];
+                    if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
+                    sum += glm::dvec3(L);
+                    ++n;
+                }
+                if (n == 0) continue;
+                TrainingSample& t = all[slots[k]];
+                t.position = starts[k].p;
+                t.normal = t.wo = starts[k].ns;
+                t.radiance = glm::vec3(sum / double(n));
+                t.voxel = uint32_t(c);
+                t.reflectance = glm::vec3(1.0f);
+                kept[slots[k]] = 1;
+            }
+        }
+        rays += counters.total();
+    });
+    std::vector<TrainingSample> out;
+    for (size_t i = 0; i < all.size(); ++i)
+        if (kept[i]) out.push_back(all[i]);
+    stats.tried = all.size();
+    stats.inside = inside;
+    stats.rays = rays;
+    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+}
+
+}  // namespace nrad

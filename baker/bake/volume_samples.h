@@ -1,0 +1,43 @@
+// Training samples of the light in the scene's volume (issue 42): what a receiver that was not in the bake (a
+// moving object) gets at a point of free space. The quantity: the radiance a white Lambertian receiver at x
+// facing n scatters, E(x, n) / pi (E: the irradiance on a plane through x with normal n), for any unit n. The
+// networks of the volume learn it with the surfaces' inputs (position in the cell, n, and n again as the
+// direction) and the surfaces' training; nrad/eval.h's volume query reads it back.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <nrad/eval.h>
+
+#include "baker/bake/training_samples.h"
+#include "baker/render/path_tracer.h"
+#include "baker/scene/scene.h"
+
+namespace nrad {
+
+struct VolumeSettings {
+    bool enabled = false;  // nrad bake --volume
+    uint32_t pointsPerCell = 1000;  // tried in each cell's box (those inside a closed solid are dropped)
+    uint32_t paths = 32;  // per point
+};
+
+struct VolumeStats {
+    uint64_t tried = 0, inside = 0;  // points tried; of them inside a closed solid (dropped)
+    uint64_t rays = 0;
+    double seconds = 0.0;
+};
+
+// Points uniform in every cell of `partition` (a voxel or a kd-tree leaf), in cell order, dropped where a ray in
+// either of two random directions first meets the back of an opaque single-sided surface (inside a closed
+// solid, or behind a surface lying on another); each with a uniform random unit normal, its target E(x, n) / pi
+// from `paths` paths of the tracer (next event estimation and BSDF sampling of a white Lambertian receiver, cut at
+// maxDepth segments: 0 unbounded), `voxel` its cell, reflectance 1. Deterministic for a seed, whatever the threads.
+std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, const eval::Partition& partition,
+                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats);
+
+// The interaction of a white Lambertian receiver at p facing n (a plane through p that is in no scene): the start
+// of its paths.
+SurfaceInteraction receiverAt(const glm::vec3& p, const glm::vec3& n);
+
+}  // namespace nrad

@@ -1,0 +1,174 @@
+// The light in the volume (issue 42): closed forms for a receiver in free space, the asset's VVOX/VWGT round trip.
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+#include <nrad/eval.h>
+#include <nrad/format.h>
+
+#include "baker/bake/baker.h"
+#include "baker/nn/random.h"
+#include "baker/scene/gltf_loader.h"
+#include "support/test_paths.h"
+#include "support/volume_query.h"
+
+namespace nrad {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+// Eight black 1 cm triangles at the corners of a 2 m cube: the scene's bounds, and next to nothing that occludes
+// or reflects. A receiver inside is lit by the environment and the lights alone.
+Scene scaffold() {
+    Scene scene;
+    scene.sourcePath = "<scaffold>";
+    Material m;
+    m.baseColor = glm::vec3(0.0f);
+    m.metallic = 0.0f;
+    m.specular = 0.0f;
+    m.doubleSided = true;
+    scene.materials.push_back(m);
+    TriangleMesh& mesh = scene.mesh;
+    for (int c = 0; c < 8; ++c) {
+        const glm::vec3 corner(c & 1 ? 1.0f : -1.0f, c & 2 ? 1.0f : -1.0f, c & 4 ? 1.0f : -1.0f);
+        const glm::vec3 in = -0.01f * corner;
+        const uint32_t at = uint32_t(mesh.positions.size());
+        for (const glm::vec3& p : {corner, corner + glm::vec3(in.x, 0, 0), corner + glm::vec3(0, in.y, 0)}) {
+            mesh.positions.push_back(p);
+            mesh.normals.emplace_back(0, 0, corner.z);
+            mesh.uv0.emplace_back(0.0f);
+            mesh.uv1.emplace_back(0.0f);
+        }
+        mesh.triangles.push_back({at, at + 1, at + 2});
+        mesh.materialIds.push_back(0);
+    }
+    scene.updateBounds();
+    return scene;
+}
+
+BakeSettings volumeBake() {
+    BakeSettings s;
+    s.grid = {2, 2, 2};
+    s.samples.points = 4000;
+    s.samples.paths = 4;
+    s.train.epochs = 300;
+    s.volume.enabled = true;
+    s.volume.pointsPerCell = 1500;
+    s.volume.paths = 8;
+    return s;
+}
+
+glm::vec3 randomDirection(SplitMix64& r) {
+    const float z = 1.0f - 2.0f * r.uniform(), phi = 2.0f * kPi * r.uniform(), s = std::sqrt(1.0f - z * z);
+    return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
+// RMS of the query's error at random points (inside the cube, away from the corners) and normals, over `scale`.
+template <class Expected>
+double rmsError(const test::VolumeQuery& query, Expected expected, float scale) {
+    SplitMix64 r(42);
+    double sum = 0.0;
+    const int n = 400;
+    for (int i = 0; i < n; ++i) {
+        const glm::vec3 p(1.6f * r.uniform() - 0.8f, 1.6f * r.uniform() - 0.8f, 1.6f * r.uniform() - 0.8f);
+        const glm::vec3 normal = randomDirection(r);
+        const glm::vec3 d = query(p, normal) - expected(normal);
+        sum += double(glm::dot(d, d)) / 3.0;
+    }
+    return std::sqrt(sum / n) / scale;
+}
+
+TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
+    Scene scene = scaffold();
+    scene.environment.kind = Environment::Kind::Constant;
+    const glm::vec3 L(0.5f, 1.0f, 2.0f);
+    scene.environment.color = L;
+    const BakeResult r = bakeScene(scene, volumeBake());
+    ASSERT_EQ(r.asset.volumeVoxels.size(), 8u);  // every cell of the 2 x 2 x 2 grid has free space
+    EXPECT_EQ(r.volumeStats.inside, 0u);
+    // E(x, n) = pi L for every n: what a white Lambertian receiver scatters is L.
+    const test::VolumeQuery query(r.asset);
+    const double err = rmsError(query, [&](const glm::vec3&) { return L; }, 1.0f);
+    std::printf("uniform sky: rms error %.4f of L's green\n", err);
+    EXPECT_LT(err, 0.02) << "rms error over |L| = 1 (the green channel)";
+}
+
+TEST(VolumeLight, AReceiverUnderASunScattersItsIlluminanceTimesTheCosineOverPi) {
+    Scene scene = scaffold();
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.direction = glm::normalize(glm::vec3(-0.3f, -1.0f, -0.2f));  // the light travels down
+    sun.intensity = glm::vec3(3.0f);
+    scene.lights.push_back(sun);
+    const BakeResult r = bakeScene(scene, volumeBake());
+    const test::VolumeQuery query(r.asset);
+    const double err = rmsError(
+        query, [&](const glm::vec3& n) { return glm::vec3(3.0f * std::max(0.0f, -glm::dot(n, sun.direction)) / kPi); }, 3.0f / kPi);
+    std::printf("sun: rms error %.4f of E / pi\n", err);
+    EXPECT_LT(err, 0.05) << "rms error over E / pi";
+}
+
+// Two rooms sharing a 2 cm wall (x = 2.22 to 2.24 m), room A lit by a panel under its ceiling, room B sealed: a
+// receiver anywhere in room B reads room B's light (none), not room A's, though cells of the grid span the wall
+// (the wall splits give each side its own cells, the volume's networks too).
+TEST(VolumeLight, AReceiverInASealedDarkRoomReadsItsDarknessNotTheLitRoom) {
+    Scene scene = loadGltf(test::sourcePath("scenes/sealed-rooms/sealed-rooms.gltf"));
+    BakeSettings s;
+    s.samples.points = 20000;
+    s.samples.paths = 8;
+    s.train.epochs = 150;
+    s.volume.enabled = true;
+    s.volume.pointsPerCell = 300;
+    s.volume.paths = 8;
+    const BakeResult r = bakeScene(scene, s);
+    const test::VolumeQuery query(r.asset);
+    SplitMix64 rng(3);
+    double lit = 0.0, dark = 0.0, darkest = 0.0;
+    const int n = 1000;
+    for (int i = 0; i < n; ++i) {
+        const glm::vec3 normal = randomDirection(rng);
+        const glm::vec3 a(0.2f + 1.8f * rng.uniform(), 0.2f + 2.2f * rng.uniform(), 0.2f + 3.6f * rng.uniform());
+        const glm::vec3 b(2.5f + 3.3f * rng.uniform(), 0.2f + 2.2f * rng.uniform(), 0.2f + 3.6f * rng.uniform());
+        const glm::vec3 la = query(a, normal), lb = query(b, normal);
+        lit += (la.x + la.y + la.z) / (3.0 * n);
+        dark += (lb.x + lb.y + lb.z) / (3.0 * n);
+        darkest = std::max(darkest, double(std::max(lb.x, std::max(lb.y, lb.z))));
+    }
+    std::printf("sealed rooms: lit room mean %.4g, dark room mean %.3g, max %.3g\n", lit, dark, darkest);
+    EXPECT_GT(lit, 0.05);
+    EXPECT_LT(dark, 1e-3 * lit) << "the dark room reads the lit room's light";
+    EXPECT_LT(darkest, 0.01 * lit);
+}
+
+TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
+    Scene scene = scaffold();
+    scene.environment.kind = Environment::Kind::Constant;
+    scene.environment.color = glm::vec3(1.0f);
+    BakeSettings s = volumeBake();
+    s.volume.pointsPerCell = 100;
+    s.train.epochs = 20;
+    const BakeResult r = bakeScene(scene, s);
+    const std::vector<uint8_t> bytes = format::encode(r.asset);
+    format::Asset back;
+    ASSERT_EQ(format::decode(bytes.data(), bytes.size(), back), format::DecodeStatus::Ok);
+    EXPECT_EQ(bytes[10], 4u) << "an asset with volume networks is version 2.4";
+    ASSERT_EQ(back.volumeVoxels.size(), r.asset.volumeVoxels.size());
+    for (size_t k = 0; k < back.volumeVoxels.size(); ++k) EXPECT_EQ(back.volumeVoxels[k].index, r.asset.volumeVoxels[k].index);
+    EXPECT_EQ(bytes.size(), format::encodedSize(back.topology, back.voxels.size(), 0, back.metadata.size(), back.volumeVoxels.size()));
+    // Without them, the bytes of before (version 2.1: blended).
+    s.volume.enabled = false;
+    const std::vector<uint8_t> plain = format::encode(bakeScene(scene, s).asset);
+    EXPECT_EQ(plain[10], 1u);
+    format::Asset noVolume;
+    ASSERT_EQ(format::decode(plain.data(), plain.size(), noVolume), format::DecodeStatus::Ok);
+    EXPECT_TRUE(noVolume.volumeVoxels.empty());
+    // VVOX without VWGT is refused.
+    format::Asset broken = back;
+    broken.volumeWeights.clear();
+    const std::vector<uint8_t> bad = format::encodeUnchecked(broken);
+    format::Asset out;
+    EXPECT_EQ(format::decode(bad.data(), bad.size(), out), format::DecodeStatus::BadVolume);
+}
+
+}  // namespace
+}  // namespace nrad
