@@ -628,7 +628,7 @@ void volumePhase(const BakeSettings& settings, const BakeTracing& tracing, const
             occupied.push_back(c);
             lists.push_back(&byCell[c]);
         }
-    result.volume = trainVoxels(occupied, lists, startTrainSettings(settings));
+    result.volume = trainVoxels(occupied, lists, settings.train);
     result.timings.volume = since(t0);
 }
 

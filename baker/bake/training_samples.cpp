@@ -368,7 +368,8 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
     hidden.resize(requests.size(), 0);
     stats.planSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - planStart).count();
     const bool traces = !group || group->traces();  // false: the paths come from elsewhere (a shard's first stage)
-    if (traces && trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
+    // (Warmed up even then: the volume's paths, traced later by every process, use the selector too.)
+    if (trainee && trainee->mode() == NeeMode::Learned && settings.neeWarmupPaths > 0 && !requests.empty())
         warmUpSelector(ps, requests, *trainee, stats);
 
     // The paths, range by range in parallel: this process's share of the points (all of them without a group).

@@ -58,63 +58,76 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
                                                   const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     const uint64_t cells = partition.cells;
-    const uint32_t per = settings.pointsPerCell;
-    std::vector<TrainingSample> all(cells * per);
-    std::vector<uint8_t> kept(all.size(), 0);
+    const uint32_t per = settings.pointsPerCell, paths = std::max(1u, settings.paths);
+    std::vector<std::vector<TrainingSample>> byCell(cells);  // what a cell keeps (memory: the kept points only)
     std::atomic<uint64_t> inside{0}, rays{0};
+    // The points of a chunk traced together: a few tracer batches of paths at a time, whatever N and the paths.
+    const size_t chunk = std::max<size_t>(1, size_t(4 * kBatchSize) / paths);
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, cells, 1), [&](const tbb::blocked_range<uint64_t>& range) {
         RayCounters counters;
+        std::vector<SurfaceInteraction> starts;
+        std::vector<PathStart> batch;
+        std::vector<glm::vec3> estimates;
         for (uint64_t c = range.begin(); c != range.end(); ++c) {
             glm::vec3 lo, hi;
             cellBox(partition, c, lo, hi);
-            std::vector<SurfaceInteraction> starts;
-            std::vector<size_t> slots;
-            starts.reserve(per);
-            for (uint32_t i = 0; i < per; ++i) {
-                SplitMix64 r((uint64_t(seed) << 40) ^ (c * 0x9e3779b97f4a7c15ull) ^ (uint64_t(i) * 0xd1b54a32d192ed03ull) ^ 0x766f6c756d65ull);
-                const glm::vec3 p = lo + (hi - lo) * glm::vec3(r.uniform(), r.uniform(), r.uniform());
-                bool out = true;
-                for (int d = 0; d < 2 && out; ++d) out = tracer.viewable(receiverAt(p, uniformDirection(r)));
-                counters.shadow += 2;
-                if (!out) {
-                    ++inside;
-                    continue;
+            for (uint32_t first = 0; first < per; first += uint32_t(chunk)) {
+                const uint32_t last = uint32_t(std::min<uint64_t>(per, uint64_t(first) + chunk));
+                starts.clear();
+                std::vector<uint32_t> index;
+                for (uint32_t i = first; i < last; ++i) {
+                    // Every point from (seed, cell, index) alone: the same whatever the threads.
+                    SplitMix64 r(SplitMix64(SplitMix64(uint64_t(seed) ^ 0x766f6c756d65ull).next() + c).next() + i);
+                    const glm::vec3 p = lo + (hi - lo) * glm::vec3(r.uniform(), r.uniform(), r.uniform());
+                    bool out = true;
+                    for (int d = 0; d < 2 && out; ++d) {
+                        out = tracer.viewable(receiverAt(p, uniformDirection(r)));
+                        ++counters.extension;
+                    }
+                    if (!out) {
+                        ++inside;
+                        continue;
+                    }
+                    starts.push_back(receiverAt(p, uniformDirection(r)));
+                    index.push_back(i);
                 }
-                starts.push_back(receiverAt(p, uniformDirection(r)));
-                slots.push_back(size_t(c * per + i));
-            }
-            std::vector<PathStart> paths;
-            paths.reserve(starts.size() * settings.paths);
-            for (size_t k = 0; k < starts.size(); ++k)
-                for (uint32_t j = 0; j < settings.paths; ++j)
-                    paths.push_back({&starts[k], uint32_t(slots[k] * 0x9e3779b1u) ^ seed ^ 0x5f3759dfu, j});
-            std::vector<glm::vec3> estimates(paths.size());
-            if (!paths.empty()) tracer.estimate(paths.data(), paths.size(), maxDepth, nullptr, 1, counters, estimates.data());
-            for (size_t k = 0; k < starts.size(); ++k) {
-                glm::dvec3 sum(0.0);
-                uint32_t n = 0;
-                for (uint32_t j = 0; j < settings.paths; ++j) {
-                    const glm::vec3& L = estimates[k * settings.paths + j];
-                    if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
-                    sum += glm::dvec3(L);
-                    ++n;
+                batch.clear();
+                for (size_t k = 0; k < starts.size(); ++k)
+                    for (uint32_t j = 0; j < paths; ++j)
+                        batch.push_back({&starts[k], uint32_t((c * per + index[k]) * 0x9e3779b1u) ^ seed ^ 0x5f3759dfu, j});
+                estimates.resize(batch.size());
+                if (!batch.empty()) tracer.estimate(batch.data(), batch.size(), maxDepth, nullptr, 1, counters, estimates.data());
+                for (size_t k = 0; k < starts.size(); ++k) {
+                    glm::dvec3 sum(0.0);
+                    uint32_t n = 0;
+                    for (uint32_t j = 0; j < paths; ++j) {
+                        const glm::vec3& L = estimates[k * paths + j];
+                        if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
+                        sum += glm::dvec3(L);
+                        ++n;
+                    }
+                    if (n == 0) continue;
+                    TrainingSample t;
+                    t.position = starts[k].p;
+                    t.normal = t.wo = starts[k].ns;
+                    t.radiance = glm::vec3(sum / double(n));
+                    t.voxel = uint32_t(c);
+                    t.reflectance = glm::vec3(1.0f);
+                    byCell[c].push_back(t);
                 }
-                if (n == 0) continue;
-                TrainingSample& t = all[slots[k]];
-                t.position = starts[k].p;
-                t.normal = t.wo = starts[k].ns;
-                t.radiance = glm::vec3(sum / double(n));
-                t.voxel = uint32_t(c);
-                t.reflectance = glm::vec3(1.0f);
-                kept[slots[k]] = 1;
             }
         }
         rays += counters.total();
     });
     std::vector<TrainingSample> out;
-    for (size_t i = 0; i < all.size(); ++i)
-        if (kept[i]) out.push_back(all[i]);
-    stats.tried = all.size();
+    size_t kept = 0;
+    for (const std::vector<TrainingSample>& v : byCell) kept += v.size();
+    out.reserve(kept);
+    for (std::vector<TrainingSample>& v : byCell) {
+        out.insert(out.end(), v.begin(), v.end());
+        std::vector<TrainingSample>().swap(v);
+    }
+    stats.tried = cells * per;
     stats.inside = inside;
     stats.rays = rays;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -17,7 +17,7 @@
 namespace nrad {
 
 struct VolumeSettings {
-    bool enabled = false;  // nrad bake --volume
+    bool enabled = false;  // nrad bake --volume-points N (N > 0)
     uint32_t pointsPerCell = 1000;  // tried in each cell's box (those inside a closed solid are dropped)
     uint32_t paths = 32;  // per point
 };

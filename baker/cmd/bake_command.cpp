@@ -352,7 +352,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.volume.enabled = o.volumePoints > 0;
     s.volume.pointsPerCell = o.volumePoints;
     s.volume.paths = o.volumePaths;
-    if (s.volume.enabled && o.volumePaths == 0) return usage("--volume-paths: expected at least 1");
+    if (s.volume.enabled && (o.volumePaths == 0 || o.volumePaths > 4096)) return usage("--volume-paths: expected 1 to 4096");
     if (s.volume.enabled && o.volumePoints > 1000000) return usage("--volume-points: expected at most 1000000");
     if (s.volume.enabled && s.partition.budgetBytes > 0)
         return usage("--volume-points with --budget: the volume's networks are not in a budget yet; bake them on a grid (--grid)");

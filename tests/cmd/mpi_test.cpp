@@ -62,9 +62,10 @@ TEST_P(MpiBake, OneTwoAndThreeProcessesWriteTheOneProcessBytes) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, MpiBake,
-                         testing::Values("", "--budget 12K", "--training integral --generations 2 --generation-points 6000"),
+                         testing::Values("", "--budget 12K", "--training integral --generations 2 --generation-points 6000",
+                                         "--volume-points 60 --volume-paths 2"),
                          [](const testing::TestParamInfo<const char*>& p) {
-                             return std::string(p.index == 0 ? "Grid" : p.index == 1 ? "Budget" : "Integral");
+                             return std::string(p.index == 0 ? "Grid" : p.index == 1 ? "Budget" : p.index == 2 ? "Integral" : "Volume");
                          });
 
 // The processes of the running launch whose command line names `marker`, and the rank of each.

@@ -62,6 +62,11 @@ public:
     NradStatus evaluateBatch(size_t count, const NradBatchSoA& batch) const {
         return nradEvaluateBatchSoA(handle_, count, &batch);
     }
+    // The light in the volume (nradEvaluateVolumeBatch): E(x, n) / pi for receivers not in the bake.
+    NradStatus evaluateVolumeBatch(size_t count, const float* positions, const float* normals, float* rgb,
+                                   uint8_t* flags = nullptr) const {
+        return nradEvaluateVolumeBatch(handle_, count, positions, normals, rgb, flags);
+    }
     NradStatus shadeBatch(size_t count, const float* positions, const float* normals, const float* directions,
                           const NradSurface* surfaces, float* rgb, uint8_t* flags = nullptr) const {
         return nradShadeBatch(handle_, count, positions, normals, directions, surfaces, rgb, flags);
