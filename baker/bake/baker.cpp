@@ -575,15 +575,17 @@ const SampleSettings& defaultBakeSamples() {
 
 namespace {
 
-// The phases of a bake (plan and sample, partition, train, rounds, assemble), every mode's: with `sampling`, the
-// processes that trace the points together (or whose traced points are replayed), `partition` those that share the
-// partition's scoring, `training` those that train the networks together; nullptr: this process alone.
+// The processes the phases after sampling run with (partition, train, rounds, assemble), every mode's: `partition`
+// those that share the partition's scoring, `training` those that train the networks together; nullptr: this
+// process alone. (Sampling takes its own: samplePhase.)
 struct BakeGroups {
-    const BakeGroup *sampling = nullptr, *partition = nullptr, *training = nullptr;
+    const BakeGroup *partition = nullptr, *training = nullptr;
 };
 
 // The plan: the scene's BVH, lights, grid and surface pieces (the time into result).
 std::unique_ptr<BakeTracing> setupPhase(const Scene& scene, const BakeSettings& settings, BakeResult& result) {
+    if (settings.volume.enabled && settings.partition.budgetBytes > 0)
+        throw std::invalid_argument("the volume's networks are not in a byte budget yet: bake them on a grid");
     auto t0 = std::chrono::steady_clock::now();
     auto tracing = std::make_unique<BakeTracing>(scene, settings);
     result.surfaceArea = tracing->pieces.totalArea();
@@ -669,7 +671,7 @@ BakeResult bakeScene(const Scene& scene, const BakeSettings& given, const BakePr
     BakeResult result;
     const std::unique_ptr<BakeTracing> tracing = setupPhase(scene, settings, result);
     const std::vector<TrainingSample> samples = samplePhase(scene, settings, *tracing, progress, result, group);
-    trainPhases(scene, settings, *tracing, samples, progress, {group, group, group}, result);
+    trainPhases(scene, settings, *tracing, samples, progress, {group, group}, result);
     return result;
 }
 
@@ -700,7 +702,7 @@ BakeResult bakeShard(const Scene& scene, const BakeSettings& given, const ShardG
         throw ShardPartError(std::string("the traced parts do not fit this bake (parts of another nrad build?): ") + e.what());
     }
     group.startRecording();
-    const std::vector<int> owner = trainPhases(scene, settings, *tracing, samples, progress, {nullptr, nullptr, &group}, result);
+    const std::vector<int> owner = trainPhases(scene, settings, *tracing, samples, progress, {nullptr, &group}, result);
     trained.clear();
     for (size_t k = 0; k < owner.size(); ++k)
         if (owner[k] == group.rank()) trained.push_back(uint32_t(k));
