@@ -641,18 +641,24 @@ int agreed(const BakeGroup* group, int code) {
     return first.get<int32_t>();
 }
 
+// The settings from --config (its keys into configKeys) and the flags; with --dump-config they are printed (if
+// `print`) and `dumped` is set: the command ends there.
+int readSettings(BakeOptions& o, CLI::App* cmd, bool print, std::set<std::string>& configKeys, BakeSettings& s, bool& dumped) {
+    if (!o.config.empty())
+        if (int code = readConfig(o, cmd, configKeys)) return code;
+    if (int code = settingsFromOptions(o, s)) return code;
+    dumped = o.dumpConfig;
+    if (dumped && print) std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
+    return kExitOk;
+}
+
 int runBake(BakeOptions o, CLI::App* cmd, const BakeGroup* group) {
     const bool first = !group || group->rank() == 0;  // the process that prints, checks the outputs and writes
     if (!first) o.quiet = true;
     std::set<std::string> configKeys;
-    if (!o.config.empty())
-        if (int code = readConfig(o, cmd, configKeys)) return code;
     BakeSettings s;
-    if (int code = settingsFromOptions(o, s)) return code;
-    if (o.dumpConfig) {
-        if (first) std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
-        return kExitOk;
-    }
+    bool dumped = false;
+    if (int code = readSettings(o, cmd, first, configKeys, s, dumped); code || dumped) return code;
     {
         std::vector<std::string> outputs = {o.output};
         if (!o.stats.empty()) outputs.push_back(o.stats);
@@ -729,14 +735,9 @@ int runShardBake(BakeOptions o, CLI::App* cmd) {
         return kExitUsage;
     }
     std::set<std::string> configKeys;
-    if (!o.config.empty())
-        if (int code = readConfig(o, cmd, configKeys)) return code;
     BakeSettings s;
-    if (int code = settingsFromOptions(o, s)) return code;
-    if (o.dumpConfig) {
-        std::printf("%s\n", bakeSettingsTable(o).json().dump(2).c_str());
-        return kExitOk;
-    }
+    bool dumped = false;
+    if (int code = readSettings(o, cmd, true, configKeys, s, dumped); code || dumped) return code;
     if (s.training == TrainingMethod::Integral) {
         std::fprintf(stderr, "nrad bake: --shard: %s\n", kShardsNotIntegral);
         return kExitUsage;
