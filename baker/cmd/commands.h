@@ -24,6 +24,12 @@ enum ExitCode : int {
 // kExitBadInput, else kExitOk. A scene without triangles is a failure too. Unless quiet, prints the import
 // summary and the importer's warnings on stderr.
 int loadSceneForCommand(const char* command, const std::string& path, bool quiet, Scene& scene, const ImportLimits& limits = {});
+// --insert FILE[@x,y,z] (repeatable): objects that were not in the bake placed into the loaded scene (insertObject),
+// each moved so its own origin lies at x,y,z. Prints "nrad COMMAND: ..." and returns kExitUsage for a bad position,
+// kExitBadInput for an object that cannot be loaded; says what was inserted unless quiet.
+int insertObjectsForCommand(const char* command, const std::vector<std::string>& specs, const ImportLimits& limits, bool quiet,
+                            Scene& scene);
+void addInsertOption(CLI::App* cmd, std::vector<std::string>& specs);
 // --max-texture-pixels and --max-triangles: what one scene may ask of the machine (ImportLimits).
 void addImportOptions(CLI::App* cmd, ImportLimits& limits);
 void addImportSettings(SettingsTable& t, ImportLimits& limits);  // the same, as rows of a command's settings

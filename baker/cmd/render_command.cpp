@@ -46,6 +46,7 @@ struct RenderOptions {
     int neeQuantum = NeeSettings{}.quantum;
     std::string chosenLight;
     ImportLimits importLimits;
+    std::vector<std::string> inserts;
     LightingOptions lighting;
     ViewOptions view;
     bool force = false;
@@ -115,6 +116,7 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
                                            scene, metadata)) return code;
     if (!o.asset.empty())
         if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
+    if (int code = insertObjectsForCommand("render", o.inserts, o.importLimits, o.quiet, scene)) return code;
     Camera camera;
     if (int code = chooseCameraForCommand("render", scene, o.camera, o.view, o.quiet, camera)) return code;
     RenderSettings settings;
@@ -232,6 +234,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     addLightingOptions(cmd, opts->lighting);
     addViewOptions(cmd, opts->view);
     addImportOptions(cmd, opts->importLimits);
+    addInsertOption(cmd, opts->inserts);
     cmd->add_flag("--force", opts->force, "--asset: use an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", opts->quiet, "No progress or import summary on stderr");
     return [opts, cmd]() { return runRender(*opts, cmd); };

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,12 @@
 namespace nrad {
 
 namespace {
+
+bool parseVec3(const std::string& s, glm::vec3& v) {
+    char rest;
+    return std::sscanf(s.c_str(), "%f,%f,%f%c", &v.x, &v.y, &v.z, &rest) == 3 && std::isfinite(v.x) && std::isfinite(v.y) &&
+           std::isfinite(v.z);
+}
 
 void printImportSummary(const Scene& scene) {
     const ImportStats& s = scene.stats;
@@ -42,6 +49,41 @@ int loadSceneForCommand(const char* command, const std::string& path, bool quiet
         return kExitBadInput;
     }
     return kExitOk;
+}
+
+int insertObjectsForCommand(const char* command, const std::vector<std::string>& specs, const ImportLimits& limits, bool quiet,
+                            Scene& scene) {
+    for (const std::string& spec : specs) {
+        // FILE@x,y,z (the object's own origin moved there), or FILE where it stands in its own file.
+        std::string path = spec;
+        glm::vec3 offset(0.0f);
+        if (const size_t at = spec.rfind('@'); at != std::string::npos && parseVec3(spec.substr(at + 1), offset)) path = spec.substr(0, at);
+        else if (at != std::string::npos && !std::filesystem::exists(spec)) {
+            std::fprintf(stderr, "nrad %s: --insert %s: the position after @ is not x,y,z (three finite numbers)\n", command, spec.c_str());
+            return kExitUsage;
+        }
+        Scene object;
+        try {
+            ImportLimits left = limits;
+            left.maxTriangles = limits.maxTriangles > scene.mesh.triangleCount() ? limits.maxTriangles - scene.mesh.triangleCount() : 1;
+            object = loadGltf(path, left);
+            insertObject(scene, object, offset, spec);
+        } catch (const SceneError& e) {
+            std::fprintf(stderr, "nrad %s: --insert: %s\n", command, e.what());
+            return kExitBadInput;
+        }
+        if (!quiet)
+            std::fprintf(stderr, "inserted %s: %zu triangles at %g,%g,%g (not in the bake: shaded through the asset's volume query)\n",
+                         path.c_str(), object.mesh.triangleCount(), offset.x, offset.y, offset.z);
+    }
+    return kExitOk;
+}
+
+void addInsertOption(CLI::App* cmd, std::vector<std::string>& specs) {
+    cmd->add_option("--insert", specs,
+                    "Place an object that was not in the bake: FILE.gltf[@x,y,z] (its origin moved to x,y,z; repeat for several). "
+                    "Path traced with the scene; through an asset, shaded by its volume query (bake --volume-points)")
+        ->allow_extra_args(false);
 }
 
 void addImportSettings(SettingsTable& t, ImportLimits& limits) {
@@ -147,14 +189,6 @@ void addViewOptions(CLI::App* cmd, ViewOptions& o) {
     cmd->add_option("--up", o.up, "Up direction for --look-from/--look-at (default 0,1,0)");
     cmd->add_option("--fov", o.fovDegrees, "Vertical field of view in degrees")->check(finiteRange(0.01, 179.0));
 }
-
-namespace {
-bool parseVec3(const std::string& s, glm::vec3& v) {
-    char rest;
-    return std::sscanf(s.c_str(), "%f,%f,%f%c", &v.x, &v.y, &v.z, &rest) == 3 && std::isfinite(v.x) && std::isfinite(v.y) &&
-           std::isfinite(v.z);
-}
-}  // namespace
 
 int applyViewForCommand(const char* command, const ViewOptions& o, Camera& camera) {
     if (o.lookFrom.empty() != o.lookAt.empty()) {

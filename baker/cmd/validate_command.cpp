@@ -33,6 +33,7 @@ struct ValidateOptions {
     LightingOptions lighting;
     ViewOptions view;
     ImportLimits importLimits;
+    std::vector<std::string> inserts;
 };
 
 // $XDG_CACHE_HOME/nrad, else $HOME/.cache/nrad, else a folder beside the report (not inside: the report folder
@@ -174,6 +175,7 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     if (int code = applyLightingForCommand("validate", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
                                            scene, metadata)) return code;
     if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
+    if (int code = insertObjectsForCommand("validate", o.inserts, o.importLimits, o.quiet, scene)) return code;
     if (!scene.hasLight()) {
         // Every image would be black and every ratio 0 / 0.
         std::fprintf(stderr, "nrad validate: %s: nothing lights the scene (no emitter of positive power, no punctual light, "
@@ -247,6 +249,7 @@ std::function<int()> addValidateCommand(CLI::App& app) {
     addLightingOptions(cmd, o->lighting);
     addViewOptions(cmd, o->view);
     addImportOptions(cmd, o->importLimits);
+    addInsertOption(cmd, o->inserts);
     cmd->add_flag("--force", o->force, "Validate an asset even if it was baked from another scene or lighting");
     cmd->add_flag("-q,--quiet", o->quiet, "No progress or import summary on stderr");
     return [o, cmd]() { return runValidate(*o, cmd); };

@@ -23,12 +23,17 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
     };
     NradAssetInfo info;
     if (NradStatus st = nradGetAssetInfo(asset, &info); st != NRAD_OK) return st;
-    return renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, settings, image, stats, progress);  // same bits
+    VolumeEvaluator volume;
+    if (info.volumeNetworks > 0 && !scene.insertedObjects.empty())
+        volume = [asset](size_t n, const float* p, const float* nrm, float* rgb, uint8_t* flags) {
+            return nradEvaluateVolumeBatch(asset, n, p, nrm, rgb, flags);
+        };
+    return renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, settings, image, stats, progress, volume);
 }
 
 NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
                           const Camera& camera, const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
-                          const std::function<void(double)>& progress) {
+                          const std::function<void(double)>& progress, const VolumeEvaluator& volume) {
     using clock = std::chrono::steady_clock;
     auto start = clock::now();
     image = Image(settings.width, settings.height);
@@ -46,6 +51,12 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
         std::vector<eval::Surface> surfaces;
         std::vector<uint8_t> flags;
         std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
+        // The inserted objects' hits (with `volume`): their points, normals, surfaces, cosines and pixels.
+        std::vector<float> vpos, vnrm, vrgb, vcos;
+        std::vector<eval::Surface> vsurfaces;
+        std::vector<uint8_t> vflags;
+        std::vector<uint32_t> vpixelOf;
+        std::vector<glm::vec3> vdirect;
         std::vector<glm::vec3> direct;  // engine-drawn lights' direct light at each hit (mixed lighting)
         bool mixed = false;
         for (const PunctualLight& l : scene.lights) mixed = mixed || l.runtimeDirect;
@@ -61,6 +72,12 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             cosNV.clear();
             pixelOf.clear();
             direct.clear();
+            vpos.clear();
+            vnrm.clear();
+            vcos.clear();
+            vsurfaces.clear();
+            vpixelOf.clear();
+            vdirect.clear();
             std::vector<glm::dvec3> sum(size_t(ts) * size_t(ts), glm::dvec3(0.0));
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {
@@ -74,6 +91,17 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                             continue;
                         }
                         SurfaceInteraction si = makeInteraction(scene, hit, d);
+                        if (volume && scene.insertedObject(hit.triangle) >= 0) {
+                            for (int k = 0; k < 3; ++k) {
+                                vpos.push_back(si.p[k]);
+                                vnrm.push_back(si.ns[k]);
+                            }
+                            vsurfaces.push_back(shadingSurface(si));
+                            vcos.push_back(glm::dot(si.ns, si.wo));
+                            vpixelOf.push_back(uint32_t((y - y0) * ts + (x - x0)));
+                            if (mixed) vdirect.push_back(engineDrawnDirect(scene, accel, si));
+                            continue;
+                        }
                         for (int k = 0; k < 3; ++k) {
                             pos.push_back(si.p[k]);
                             nrm.push_back(si.ns[k]);
@@ -90,8 +118,21 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             rgb.assign(3 * n, 0.0f);
             flags.assign(n, 0);
             NradStatus st = n > 0 ? evaluate(n, pos.data(), nrm.data(), dir.data(), rgb.data(), flags.data()) : NRAD_OK;
+            const size_t vn = vpixelOf.size();
+            vrgb.assign(3 * vn, 0.0f);
+            vflags.assign(vn, 0);
+            if (vn > 0 && st == NRAD_OK) st = volume(vn, vpos.data(), vnrm.data(), vrgb.data(), vflags.data());
             auto t2 = clock::now();
             if (st != NRAD_OK) failure = st;
+            for (size_t i = 0; i < vn; ++i) {
+                float L[3];
+                eval::shadeVolume(&vrgb[3 * i], vsurfaces[i], vcos[i], L);
+                sum[vpixelOf[i]] += glm::dvec3(L[0], L[1], L[2]);
+                if (mixed) sum[vpixelOf[i]] += glm::dvec3(vdirect[i]);
+                local.outsideGrid += vflags[i] == NRAD_POINT_OUTSIDE_GRID;
+                local.emptyVoxel += vflags[i] == NRAD_POINT_EMPTY_VOXEL;
+                local.invalidInput += vflags[i] == NRAD_POINT_INVALID_INPUT;
+            }
             for (size_t i = 0; i < n; ++i) {
                 float L[3];
                 eval::shade(contentFlags, &rgb[3 * i], surfaces[i], cosNV[i], L);
@@ -105,6 +146,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                 for (int x = x0; x < x1; ++x)
                     image.at(x, y) = glm::vec3(sum[size_t((y - y0) * ts + (x - x0))] / double(std::max(1, settings.spp)));
             local.evaluations += n;
+            local.volumeEvaluations += vn;
             local.visibilitySeconds += std::chrono::duration<double>(t1 - t0).count();
             local.evaluationSeconds += std::chrono::duration<double>(t2 - t1).count();
             int done = ++tilesDone;
@@ -114,6 +156,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
         total.visibilitySeconds += local.visibilitySeconds;
         total.evaluationSeconds += local.evaluationSeconds;
         total.evaluations += local.evaluations;
+        total.volumeEvaluations += local.volumeEvaluations;
         total.outsideGrid += local.outsideGrid;
         total.emptyVoxel += local.emptyVoxel;
         total.invalidInput += local.invalidInput;

@@ -17,6 +17,7 @@ struct NeuralRenderStats {
     double visibilitySeconds = 0.0;  // summed over threads: primary rays and surface interactions
     double evaluationSeconds = 0.0;  // summed over threads: runtime evaluation
     uint64_t evaluations = 0;
+    uint64_t volumeEvaluations = 0;  // volume queries at inserted objects (not in evaluations)
     uint64_t outsideGrid = 0, emptyVoxel = 0, invalidInput = 0;  // per-point flags
 };
 
@@ -26,15 +27,23 @@ struct NeuralRenderStats {
 using FirstHitEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals,
                                                    const float* directions, float* rgb, uint8_t* flags)>;
 
+// The light in the volume at a batch of receivers that were not in the bake (Scene::insertedObjects): positions and
+// shading normals (interleaved xyz) -> D(x, n) = E(x, n) / pi (rgb interleaved) and a per-point flag.
+using VolumeEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals, float* rgb,
+                                                 uint8_t* flags)>;
+
 // Renders with primary visibility only, radiance at the first hit from `evaluate`, shaded by the contract of
 // nrad/eval.h (contentFlags: format::kFlag*; with kFlagScatteredRadiance the hit's own emission towards the
 // camera is added): tile by tile, each tile's hits in one batch. The same sample positions as
-// renderThroughAsset, so any two evaluators render the same hits.
+// renderThroughAsset, so any two evaluators render the same hits. With `volume`, hits on inserted objects are
+// shaded from it by eval::shadeVolume (one more batch per tile); without, like the bake's surfaces.
 NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
                           const Camera& camera, const RenderSettings& settings, Image& image,
-                          NeuralRenderStats* stats = nullptr, const std::function<void(double)>& progress = {});
+                          NeuralRenderStats* stats = nullptr, const std::function<void(double)>& progress = {},
+                          const VolumeEvaluator& volume = {});
 
-// The asset's contentFlags decide the shading. Fails with the runtime's status if evaluation fails.
+// The asset's contentFlags decide the shading; inserted objects are shaded through its volume query
+// (nradEvaluateVolumeBatch) when it has volume networks. Fails with the runtime's status if evaluation fails.
 NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
                               const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
                               const std::function<void(double)>& progress = {});

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "baker/scene/gltf_loader.h"
+
 namespace nrad {
 
 glm::vec2 TextureRef::apply(glm::vec2 uv) const {
@@ -21,6 +23,45 @@ float TriangleMesh::triangleArea(size_t t) const {
 glm::vec3 TriangleMesh::geometricNormal(size_t t) const {
     const glm::uvec3& tri = triangles[t];
     return glm::normalize(glm::cross(positions[tri.y] - positions[tri.x], positions[tri.z] - positions[tri.x]));
+}
+
+int Scene::insertedObject(size_t t) const {
+    auto it = std::upper_bound(insertedObjects.begin(), insertedObjects.end(), t);
+    return int(it - insertedObjects.begin()) - 1;
+}
+
+void insertObject(Scene& scene, const Scene& object, const glm::vec3& offset, const std::string& name) {
+    if (object.mesh.triangleCount() == 0) throw SceneError(name + ": the object has no triangles to insert");
+    TriangleMesh& m = scene.mesh;
+    const TriangleMesh& o = object.mesh;
+    const size_t vertices = m.positions.size(), added = o.positions.size();
+    const uint32_t materialBase = uint32_t(scene.materials.size());
+    const int textureBase = int(scene.textures.size());
+    scene.insertedObjects.push_back(m.triangleCount());
+    scene.insertedNames.push_back(name);
+    for (const glm::vec3& p : o.positions) m.positions.push_back(p + offset);
+    m.normals.insert(m.normals.end(), o.normals.begin(), o.normals.end());
+    m.uv0.insert(m.uv0.end(), o.uv0.begin(), o.uv0.end());
+    m.uv1.insert(m.uv1.end(), o.uv1.begin(), o.uv1.end());
+    // Optional attributes: present in either, then one per vertex of both (the defaults where absent).
+    auto merge = [&](std::vector<glm::vec4>& to, const std::vector<glm::vec4>& from, const glm::vec4& none) {
+        if (to.empty() && from.empty()) return;
+        to.resize(vertices, none);
+        if (from.empty()) to.resize(vertices + added, none);
+        else to.insert(to.end(), from.begin(), from.end());
+    };
+    merge(m.colors, o.colors, glm::vec4(1.0f));
+    merge(m.tangents, o.tangents, glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+    for (const glm::uvec3& t : o.triangles) m.triangles.push_back(t + glm::uvec3(uint32_t(vertices)));
+    for (uint32_t id : o.materialIds) m.materialIds.push_back(id + materialBase);
+    for (Material mat : object.materials) {
+        for (TextureRef* ref : {&mat.baseColorTexture, &mat.metallicRoughnessTexture, &mat.emissiveTexture,
+                                &mat.transmissionTexture, &mat.normalTexture})
+            if (ref->valid()) ref->texture += textureBase;
+        scene.materials.push_back(std::move(mat));
+    }
+    scene.textures.insert(scene.textures.end(), object.textures.begin(), object.textures.end());
+    scene.updateBounds();
 }
 
 void Scene::updateBounds() {

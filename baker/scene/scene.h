@@ -152,6 +152,13 @@ struct Scene {
     Environment environment;  // not from glTF: set by the commands (--environment, or the default sky)
     Bounds3 bounds;
     ImportStats stats;
+    // Objects placed after the bake (`--insert`, issue 42): the first triangle of each, in order; the triangles
+    // from insertedObjects[0] on are none of the bake's (they are shaded through the asset's volume query).
+    std::vector<size_t> insertedObjects;
+    std::vector<std::string> insertedNames;  // what each was placed from ("FILE@x,y,z")
+
+    // The inserted object triangle t belongs to, -1 for the bake's own triangles.
+    int insertedObject(size_t t) const;
 
     // Recomputes bounds from the mesh and the positional lights.
     void updateBounds();
@@ -165,6 +172,11 @@ struct Scene {
     // intensity, or an active environment.
     bool hasLight() const;
 };
+
+// Places `object` (another imported scene) into `scene`, moved by `offset`: its triangles are appended (with its
+// materials and textures), recorded in insertedObjects. Its punctual lights and cameras are not taken (an object
+// placed after the bake lights nothing the asset holds). Throws SceneError for an object without triangles.
+void insertObject(Scene& scene, const Scene& object, const glm::vec3& offset, const std::string& name);
 
 // Builds a camera that frames the whole scene from +Z looking down -Z (used when the scene has none).
 Camera frameBounds(const Bounds3& bounds, float yfov = 0.6911f);

@@ -279,6 +279,27 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
     for (const CurvePoint& c : r.curve) curve.push_back({{"spp", c.spp}, {"seconds", c.seconds}, {"metrics", metricsJson(c.metrics)}});
     j["path_tracer_convergence"] = curve;
     j["neural"] = methodJson(r.neural);
+    if (!r.inserted.empty()) {
+        nlohmann::json objects = nlohmann::json::array();
+        for (const InsertedFigure& f : r.inserted) {
+            nlohmann::json o = {{"name", f.name}, {"pixels", f.pixels}, {"neural_relmse", num(f.neuralRelMse)},
+                                {"neural_mean_ratio", num(f.neuralMeanRatio)}};
+            if (r.baseline) {
+                o["baseline_relmse"] = num(f.baselineRelMse);
+                o["baseline_mean_ratio"] = num(f.baselineMeanRatio);
+                o["relmse_ratio_baseline_over_neural"] = num(f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0);
+            }
+            objects.push_back(o);
+        }
+        j["inserted"] = {{"objects", objects}, {"through", r.insertedThroughVolume ? "volume query" : "surface networks"},
+                         {"volume_bytes", r.volumeBytes}};
+        if (r.baseline)
+            j["inserted"]["baseline"] = {{"kind", "L2 SH irradiance probes"},
+                                         {"probes", {r.irradianceProbes.x, r.irradianceProbes.y, r.irradianceProbes.z}},
+                                         {"left_out_inside_solids", r.irradianceFit.leftOut},
+                                         {"paths", r.irradianceFit.paths},
+                                         {"seconds", num(r.irradianceFit.seconds)}};
+    }
     j["seams"] = {{"points", r.seams.points}, {"relmse_across_faces", num(r.seams.relMse)},
                   {"mean_relative_jump", num(r.seams.meanRelativeJump)},
                   {"evaluations_per_point", num(r.seams.evaluationsPerPoint)},
@@ -561,6 +582,30 @@ void htmlBakeAndEnd(std::ostringstream& h, const nlohmann::json* b) {
 
 }  // namespace
 
+// The objects placed after the bake: their interior pixels' error, the asset's volume query against the probes.
+static void htmlInserted(std::ostringstream& h, const ValidationResult& r) {
+    h << "<h2>Inserted objects</h2>\n<p>Objects that were not in the bake, shaded through the asset's "
+      << (r.insertedThroughVolume ? "volume query" : "surface networks (it has no volume networks: an extrapolation)");
+    if (r.baseline)
+        h << ", against " << r.irradianceProbes.x << "x" << r.irradianceProbes.y << "x" << r.irradianceProbes.z
+          << " L2 SH irradiance probes of the volume's bytes";
+    h << ". Over each object's interior pixels:</p>\n<table><tr><th>object</th><th>pixels</th><th>relMSE asset</th>";
+    if (r.baseline) h << "<th>relMSE SH probes</th><th>SH / asset</th>";
+    h << "<th>mean / reference (asset)</th>";
+    if (r.baseline) h << "<th>mean / reference (SH)</th>";
+    h << "</tr>\n";
+    for (const InsertedFigure& f : r.inserted) {
+        h << "<tr><td>" << escape(f.name) << "</td><td>" << f.pixels << "</td><td>" << fmt("%.4g", f.neuralRelMse) << "</td>";
+        if (r.baseline)
+            h << "<td>" << fmt("%.4g", f.baselineRelMse) << "</td><td>"
+              << fmt("%.3g", f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0) << "</td>";
+        h << "<td>" << fmt("%.3f", f.neuralMeanRatio) << "</td>";
+        if (r.baseline) h << "<td>" << fmt("%.3f", f.baselineMeanRatio) << "</td>";
+        h << "</tr>\n";
+    }
+    h << "</table>\n";
+}
+
 static void writeReportFiles(const ValidationResult& r, const nlohmann::json& bakeStats, const fs::path& dir) {
     const float exposure = r.settings.exposure;
     writeExr((dir / "reference.exr").string(), r.reference);
@@ -583,6 +628,7 @@ static void writeReportFiles(const ValidationResult& r, const nlohmann::json& ba
     htmlErrorTables(h, r);
     htmlSeamsAndPlots(h, r, !bc.empty());
     if (r.baseline) htmlComparison(h, r, j["comparison"]);
+    if (!r.inserted.empty()) htmlInserted(h, r);
     if (bakeStats.is_object() && bakeStats.contains("partition") && bakeStats["partition"].is_object()) htmlPartition(h, bakeStats);
     htmlBakeAndEnd(h, j.contains("bake") ? &j["bake"] : nullptr);
     writeText(dir / "report.html", h.str());

@@ -15,6 +15,7 @@
 
 #include "baker/bake/baker.h"
 #include "baker/bake/training_samples.h"
+#include "baker/bake/volume_samples.h"
 #include "baker/bake/voxel_grid.h"
 #include "baker/render/accel.h"
 #include "baker/render/surface.h"
@@ -67,6 +68,7 @@ FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera
     h.height = height;
     h.voxel.assign(n, -1);
     h.material.assign(n, -1);
+    h.inserted.assign(n, -1);
     h.emitter.assign(n, 0);
     h.points.assign(n, glm::vec3(std::numeric_limits<float>::quiet_NaN()));
     h.normals.assign(n, glm::vec3(0.0f));
@@ -83,6 +85,7 @@ FirstHits firstHits(const Scene& scene, const Accel& accel, const Camera& camera
                 const float p[3] = {si.p.x, si.p.y, si.p.z};
                 h.voxel[i] = partition.cellOf(p);
                 h.material[i] = int(scene.mesh.materialIds[hit.triangle]);
+                h.inserted[i] = scene.insertedObject(hit.triangle);
                 h.emitter[i] = si.emission.x > 0.0f || si.emission.y > 0.0f || si.emission.z > 0.0f;
                 h.points[i] = si.p;
                 h.normals[i] = si.ns;
@@ -671,7 +674,8 @@ ShProbeGrid fitBaseline(ValidationRun& v, const NradAssetInfo& info, const Sampl
 }
 
 // The probes' first-hit render, scored like the asset's.
-void renderBaseline(ValidationRun& v, const ShProbeGrid& probes, const NradAssetInfo& info, const RenderSettings& fh) {
+void renderBaseline(ValidationRun& v, const ShProbeGrid& probes, const ShIrradianceGrid* irradiance, const NradAssetInfo& info,
+                    const RenderSettings& fh) {
     ValidationResult& r = v.r;
     FirstHitEvaluator evaluate = [&probes](size_t n, const float* p, const float* /*normals*/, const float* d, float* rgb,
                                            uint8_t* flags) {
@@ -682,10 +686,20 @@ void renderBaseline(ValidationRun& v, const ShProbeGrid& probes, const NradAsset
         }
         return NRAD_OK;
     };
+    VolumeEvaluator volume;  // inserted objects: the irradiance probes
+    if (irradiance)
+        volume = [irradiance](size_t n, const float* p, const float* nrm, float* rgb, uint8_t* flags) {
+            for (size_t i = 0; i < n; ++i) {
+                const glm::vec3 D = irradiance->evaluate({p[3 * i], p[3 * i + 1], p[3 * i + 2]}, {nrm[3 * i], nrm[3 * i + 1], nrm[3 * i + 2]});
+                for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(D[c]) ? D[c] : 0.0f;
+                flags[i] = NRAD_POINT_OK;
+            }
+            return NRAD_OK;
+        };
     MethodResult m;
     m.name = "sh-probes";
     NeuralRenderStats st;
-    renderFirstHit(v.scene, v.accel, evaluate, info.contentFlags, v.settings.camera, fh, m.image, &st);
+    renderFirstHit(v.scene, v.accel, evaluate, info.contentFlags, v.settings.camera, fh, m.image, &st, {}, volume);
     score(m, st, r, v.settings.exposure);
     m.bytes = probes.bytes();
     equalError(m, r.curve);
@@ -694,6 +708,32 @@ void renderBaseline(ValidationRun& v, const ShProbeGrid& probes, const NradAsset
     std::snprintf(line, sizeof line, "baseline: %ux%ux%u L2 SH probes (%zu bytes), fit relMSE %.4g, image relMSE %.4g", r.baselineProbes.x,
                   r.baselineProbes.y, r.baselineProbes.z, r.baseline->bytes, r.baselineFit.trainRelMse, r.baseline->metrics.relMse);
     v.say(line);
+}
+
+// The inserted objects' baseline: L2 SH irradiance probes over the asset's grid, of the volume networks' bytes (of
+// the surfaces' where the asset has no volume), estimated as the volume is trained (the bake's path length, no
+// engine-drawn direct light).
+ShIrradianceGrid fitIrradianceBaseline(ValidationRun& v, const NradAssetInfo& info, const SampleSettings& ss) {
+    ValidationResult& r = v.r;
+    const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+    const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+    r.irradianceProbes = irradianceDimsForBudget(lower, upper, r.volumeBytes > 0 ? r.volumeBytes : r.neural.bytes);
+    PathTracer tracer(v.scene, v.accel, v.lights);
+    tracer.setExcludeEngineDrawnDirect(true);
+    tracer.setRouletteThreshold(kTrainingRouletteThreshold);
+    ShIrradianceFit fit;
+    fit.seed = ss.seed;
+    fit.maxDepth = ss.maxDepth;
+    const uint64_t probes = uint64_t(r.irradianceProbes.x) * r.irradianceProbes.y * r.irradianceProbes.z;
+    const uint64_t cap = std::max<uint64_t>(uint64_t(1) << 22, 256 * probes);  // paths in all
+    fit.pathsPerNormal = uint32_t(std::clamp<uint64_t>(cap / (probes * fit.normalsPerProbe), 1, fit.pathsPerNormal));
+    const ShIrradianceGrid g = fitShIrradianceGrid(tracer, lower, upper, r.irradianceProbes, fit, &r.irradianceFit);
+    char line[256];
+    std::snprintf(line, sizeof line, "baseline: %ux%ux%u L2 SH irradiance probes for the inserted objects (%zu bytes; %llu inside solids left out), %.1f s",
+                  r.irradianceProbes.x, r.irradianceProbes.y, r.irradianceProbes.z, g.bytes(), (unsigned long long)r.irradianceFit.leftOut,
+                  r.irradianceFit.seconds);
+    v.say(line);
+    return g;
 }
 
 // 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
@@ -708,7 +748,160 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
     r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
     capBaselineBudget(r, v.settings, uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z, ss);
     const ShProbeGrid probes = fitBaseline(v, info, ss, dims, t0);
-    renderBaseline(v, probes, info, fh);
+    if (v.scene.insertedObjects.empty()) return renderBaseline(v, probes, nullptr, info, fh);
+    const ShIrradianceGrid irradiance = fitIrradianceBaseline(v, info, ss);
+    renderBaseline(v, probes, &irradiance, info, fh);
+}
+
+// The exact volume quantity on the inserted objects (InsertedFigure): D(x, n) traced in the scene without them at
+// the centres of the pixels where `use` is set, shaded as the asset's query is; the other pixels 0.
+Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32_t paths) {
+    Scene bare = v.scene;  // the scene as baked: the inserted triangles are the last ones
+    const size_t keep = v.scene.insertedObjects.front();
+    bare.mesh.triangles.resize(keep);
+    bare.mesh.materialIds.resize(keep);
+    bare.insertedObjects.clear();
+    bare.updateBounds();
+    Accel accel(bare);
+    LightSampler lights(bare);
+    PathTracer tracer(bare, accel, lights);
+    tracer.setRouletteThreshold(kTrainingRouletteThreshold);
+    const int w = v.r.width, h = v.r.height;
+    Image out(w, h);
+    CameraRays rays(v.settings.camera, w, h);
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+        RayCounters counters;
+        std::vector<PathStart> batch;
+        std::vector<glm::vec3> estimates(paths);
+        for (int y = rows.begin(); y != rows.end(); ++y)
+            for (int x = 0; x < w; ++x) {
+                const size_t i = size_t(y) * size_t(w) + size_t(x);
+                if (!use[i]) continue;
+                glm::vec3 o, d;
+                rays.generate(float(x) + 0.5f, float(y) + 0.5f, o, d);
+                const Hit hit = v.accel.intersect(o, d);
+                if (!hit.valid()) continue;
+                const SurfaceInteraction si = makeInteraction(v.scene, hit, d);
+                const SurfaceInteraction receiver = receiverAt(si.p, si.ns);
+                batch.clear();
+                for (uint32_t j = 0; j < paths; ++j) batch.push_back({&receiver, uint32_t(i * 0x9e3779b1u) ^ 0x6578616du, j});
+                tracer.estimate(batch.data(), batch.size(), 0, nullptr, 1, counters, estimates.data());
+                glm::dvec3 sum(0.0);
+                uint32_t n = 0;
+                for (const glm::vec3& L : estimates)
+                    if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += glm::dvec3(L), ++n;
+                const glm::vec3 D = n ? glm::vec3(sum / double(n)) : glm::vec3(0.0f);
+                const float Dv[3] = {D.x, D.y, D.z};
+                float L[3];
+                eval::shadeVolume(Dv, shadingSurface(si), glm::dot(si.ns, si.wo), L);
+                out.at(x, y) = glm::vec3(L[0], L[1], L[2]);
+            }
+    });
+    return out;
+}
+
+// The inserted objects' figures (InsertedFigure): each object's interior pixels, then all of them together.
+void measureInserted(ValidationRun& v, const FirstHits& hits) {
+    ValidationResult& r = v.r;
+    const size_t objects = v.scene.insertedObjects.size();
+    const int w = hits.width, h = hits.height;
+    struct Sums {
+        size_t pixels = 0;
+        double neural = 0.0, baseline = 0.0;
+        double refLum = 0.0, neuralLum = 0.0, baselineLum = 0.0;
+    };
+    std::vector<Sums> sums(objects + 1);
+    auto lum = [](const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; };
+    std::vector<uint8_t> interior(size_t(w) * size_t(h), 0), exactAt(interior.size(), 0);
+    size_t exactCount = 0;
+    for (int y = 1; y + 1 < h; ++y)
+        for (int x = 1; x + 1 < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            const int o = hits.inserted[i];
+            if (o < 0) continue;
+            bool in = true;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) in = in && hits.inserted[size_t(y + dy) * size_t(w) + size_t(x + dx)] == o;
+            interior[i] = in;
+            exactAt[i] = in && x % 2 == 0 && y % 2 == 0;
+            exactCount += exactAt[i];
+        }
+    // The exact quantity's paths: 1024 per pixel, fewer where the objects cover many (4 M paths in all at most).
+    r.exactPaths = uint32_t(std::clamp<size_t>(exactCount ? (size_t(1) << 22) / exactCount : 1024, 64, 1024));
+    const Image exact = exactVolumeImage(v, exactAt, r.exactPaths);
+    struct ExactSums {
+        size_t pixels = 0;
+        double err = 0.0, lum = 0.0, refLum = 0.0, neural = 0.0, baseline = 0.0;
+    };
+    std::vector<ExactSums> exactSums(objects + 1);
+    for (int y = 1; y + 1 < h; ++y)
+        for (int x = 1; x + 1 < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            if (!interior[i]) continue;
+            const int o = hits.inserted[i];
+            const glm::vec3 ref = r.reference.pixels[i], a = r.neural.image.pixels[i];
+            if (exactAt[i])
+                for (ExactSums* s : {&exactSums[size_t(o)], &exactSums[objects]}) {
+                    ++s->pixels;
+                    for (int c = 0; c < 3; ++c)
+                        s->err += (double(exact.pixels[i][c]) - ref[c]) * (double(exact.pixels[i][c]) - ref[c]) / (double(ref[c]) * ref[c] + 0.01);
+                    s->lum += lum(exact.pixels[i]);
+                    s->refLum += lum(ref);
+                    const glm::vec3 t = exact.pixels[i], b = r.baseline ? r.baseline->image.pixels[i] : glm::vec3(0.0f);
+                    for (int c = 0; c < 3; ++c) {
+                        const double dn = double(t[c]) * t[c] + 0.01;
+                        s->neural += (double(a[c]) - t[c]) * (double(a[c]) - t[c]) / dn;
+                        s->baseline += (double(b[c]) - t[c]) * (double(b[c]) - t[c]) / dn;
+                    }
+                }
+            const glm::vec3 b = r.baseline ? r.baseline->image.pixels[i] : glm::vec3(0.0f);
+            for (Sums* s : {&sums[size_t(o)], &sums[objects]}) {
+                ++s->pixels;
+                for (int c = 0; c < 3; ++c) {
+                    const double d = double(ref[c]) * ref[c] + 0.01;
+                    s->neural += (double(a[c]) - ref[c]) * (double(a[c]) - ref[c]) / d;
+                    s->baseline += (double(b[c]) - ref[c]) * (double(b[c]) - ref[c]) / d;
+                }
+                s->refLum += lum(ref);
+                s->neuralLum += lum(a);
+                s->baselineLum += lum(b);
+            }
+        }
+    for (size_t o = 0; o <= objects; ++o) {
+        if (o == objects && objects == 1) break;
+        const Sums& s = sums[o];
+        InsertedFigure f;
+        f.name = o < objects ? v.scene.insertedNames[o] : "all inserted objects";
+        f.pixels = s.pixels;
+        if (s.pixels > 0) {
+            f.neuralRelMse = s.neural / double(3 * s.pixels);
+            f.baselineRelMse = s.baseline / double(3 * s.pixels);
+            f.neuralMeanRatio = s.refLum > 0.0 ? s.neuralLum / s.refLum : 0.0;
+            f.baselineMeanRatio = s.refLum > 0.0 ? s.baselineLum / s.refLum : 0.0;
+        }
+        const ExactSums& e = exactSums[o];
+        f.exactPixels = e.pixels;
+        if (e.pixels > 0) {
+            f.exactRelMse = e.err / double(3 * e.pixels);
+            f.exactMeanRatio = e.refLum > 0.0 ? e.lum / e.refLum : 0.0;
+            f.neuralVsExact = e.neural / double(3 * e.pixels);
+            f.baselineVsExact = e.baseline / double(3 * e.pixels);
+        }
+        r.inserted.push_back(f);
+        char line[640];
+        if (r.baseline)
+            std::snprintf(line, sizeof line,
+                          "inserted %s: %zu pixels, relMSE asset %.4g, SH irradiance probes %.4g (%.3gx), exact volume light %.4g; "
+                          "mean %.3f, %.3f, %.3f of the reference's; against the exact volume light: asset %.4g, SH %.4g (%.3gx)",
+                          f.name.c_str(), f.pixels, f.neuralRelMse, f.baselineRelMse,
+                          f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0, f.exactRelMse, f.neuralMeanRatio,
+                          f.baselineMeanRatio, f.exactMeanRatio, f.neuralVsExact, f.baselineVsExact,
+                          f.neuralVsExact > 0.0 ? f.baselineVsExact / f.neuralVsExact : 0.0);
+        else
+            std::snprintf(line, sizeof line, "inserted %s: %zu pixels, relMSE asset %.4g, exact volume light %.4g; mean %.3f, %.3f of the reference's",
+                          f.name.c_str(), f.pixels, f.neuralRelMse, f.exactRelMse, f.neuralMeanRatio, f.exactMeanRatio);
+        v.say(line);
+    }
 }
 
 }  // namespace
@@ -739,10 +932,16 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     RenderSettings fh = v.rs;
     fh.spp = settings.neuralSpp;
     fh.seed = settings.seed;
+    r.volumeBytes = size_t(info.volumeNetworks) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
+    r.insertedThroughVolume = info.volumeNetworks > 0 && !scene.insertedObjects.empty();
+    if (!scene.insertedObjects.empty() && info.volumeNetworks == 0)
+        v.say("inserted objects: the asset has no volume networks (bake with --volume-points): they are shaded by the surfaces' networks, "
+              "an extrapolation nobody trained");
     renderNeural(v, asset, assetPath, info, partition, fh);
     readMetadataAndBias(v, asset);
 
     if (settings.baseline) runBaseline(v, info, fh);
+    if (!scene.insertedObjects.empty()) measureInserted(v, hits);
     return r;
 }
 

@@ -17,6 +17,7 @@
 #include "baker/render/path_tracer.h"
 #include "baker/scene/scene.h"
 #include "baker/validate/metrics.h"
+#include "baker/validate/sh_irradiance.h"
 #include "baker/validate/sh_probes.h"
 
 namespace nrad {
@@ -113,6 +114,7 @@ struct FirstHits {
     int width = 0, height = 0;
     std::vector<int64_t> voxel;
     std::vector<int> material;  // index into Scene::materials, -1 where the pixel's centre sees no surface
+    std::vector<int> inserted;  // Scene::insertedObject of the surface the pixel's centre sees, -1 for the bake's or none
     std::vector<uint8_t> emitter;
     std::vector<glm::vec3> points, normals, directions;
 };
@@ -124,6 +126,23 @@ std::vector<int> pixelRegions(const FirstHits& hits);
 SeamFigure seamFigure(const FirstHits& hits, const eval::Partition& partition, NradAsset asset);
 // The partition of the asset file at `path` (its grid, or its kd-tree), as the runtime locates with it.
 eval::Partition assetPartition(const std::string& path);
+
+// An object placed after the bake (--insert; issue 42), or all of them together: its interior pixels (whose
+// centre and 8 neighbours' centres see it), and there the relMSE and mean luminance (over the reference's) of the
+// neural image (the asset's volume query) and of the baseline's (L2 SH irradiance probes of the volume's bytes).
+// The floor under both: the exact volume quantity, D(x, n) path traced in the scene without the inserted objects
+// at every other pixel's centre in both directions, shaded alike (eval::shadeVolume): what no representation of
+// the light in the volume can beat, since the reference also holds what the objects do to their surroundings
+// (the shadow a sphere casts on the floor under it darkens the light its underside receives).
+struct InsertedFigure {
+    std::string name;
+    size_t pixels = 0;
+    double neuralRelMse = 0.0, baselineRelMse = 0.0, exactRelMse = 0.0;
+    double neuralMeanRatio = 0.0, baselineMeanRatio = 0.0, exactMeanRatio = 0.0;
+    size_t exactPixels = 0;
+    // Against the exact volume light instead of the reference, on its pixels: what the representation alone loses.
+    double neuralVsExact = 0.0, baselineVsExact = 0.0;
+};
 
 struct ValidationResult {
     std::string scenePath, assetPath;
@@ -160,6 +179,14 @@ struct ValidationResult {
     std::vector<uint8_t> surfaceOfPixel;  // 1 where the pixel's centre sees a surface that does not emit
     std::vector<std::string> materialNames;  // the scene's, in order ("material N" where unnamed)
     SeamFigure seams;
+    // Inserted objects: one figure per object, then (with more than one) all together; the baseline's figures only
+    // with the baseline. How the asset shaded them: its volume query, or (an asset without one) its surfaces'.
+    std::vector<InsertedFigure> inserted;
+    bool insertedThroughVolume = false;
+    size_t volumeBytes = 0;  // the asset's volume networks' weights
+    glm::uvec3 irradianceProbes{0};  // the baseline's irradiance probes (inserted objects only)
+    ShIrradianceStats irradianceFit;
+    uint32_t exactPaths = 0;  // per pixel, for InsertedFigure's exact volume quantity
 };
 
 // What of an imported scene a reference render depends on, hashed: the whole mesh (positions, normals, UVs,

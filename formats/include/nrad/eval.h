@@ -581,5 +581,16 @@ inline void shade(uint32_t contentFlags, const float assetRadiance[3], const Sur
     for (int c = 0; c < 3; ++c) out[c] = r[c] * assetRadiance[c] + (scattered ? surface.emission[c] : 0.0f);
 }
 
+// A receiver that was not in the bake (a moving object; issue 42), shaded from the asset's volume query:
+// volumeRadiance is D(x, n) = E(x, n) / pi at the receiver's point and shading normal (what a white Lambertian
+// receiver there scatters). The receiver reflects it times its reflectance() (its diffuse albedo plus the
+// specular lobe's directional albedo: exact for a Lambertian receiver; a glossy lobe is taken to see the
+// cosine-weighted mean of the light arriving), plus its own emission towards the viewer.
+inline void shadeVolume(const float volumeRadiance[3], const Surface& surface, float cosNV, float out[3]) {
+    float r[3];
+    reflectance(surface, cosNV, r);
+    for (int c = 0; c < 3; ++c) out[c] = r[c] * volumeRadiance[c] + surface.emission[c];
+}
+
 
 }  // namespace nrad::eval
