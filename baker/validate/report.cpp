@@ -283,16 +283,20 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
         nlohmann::json objects = nlohmann::json::array();
         for (const InsertedFigure& f : r.inserted) {
             nlohmann::json o = {{"name", f.name}, {"pixels", f.pixels}, {"neural_relmse", num(f.neuralRelMse)},
-                                {"neural_mean_ratio", num(f.neuralMeanRatio)}};
+                                {"neural_mean_ratio", num(f.neuralMeanRatio)},
+                                {"exact_volume_light", {{"pixels", f.exactPixels}, {"relmse", num(f.exactRelMse)},
+                                                        {"mean_ratio", num(f.exactMeanRatio)}, {"neural_relmse_against_it", num(f.neuralVsExact)}}}};
             if (r.baseline) {
                 o["baseline_relmse"] = num(f.baselineRelMse);
                 o["baseline_mean_ratio"] = num(f.baselineMeanRatio);
                 o["relmse_ratio_baseline_over_neural"] = num(f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0);
+                o["exact_volume_light"]["baseline_relmse_against_it"] = num(f.baselineVsExact);
+                o["exact_volume_light"]["relmse_ratio_baseline_over_neural"] = num(f.neuralVsExact > 0.0 ? f.baselineVsExact / f.neuralVsExact : 0.0);
             }
             objects.push_back(o);
         }
         j["inserted"] = {{"objects", objects}, {"through", r.insertedThroughVolume ? "volume query" : "surface networks"},
-                         {"volume_bytes", r.volumeBytes}};
+                         {"volume_bytes", r.volumeBytes}, {"exact_volume_light_paths_per_pixel", r.exactPaths}};
         if (r.baseline)
             j["inserted"]["baseline"] = {{"kind", "L2 SH irradiance probes"},
                                          {"probes", {r.irradianceProbes.x, r.irradianceProbes.y, r.irradianceProbes.z}},
@@ -589,10 +593,14 @@ static void htmlInserted(std::ostringstream& h, const ValidationResult& r) {
     if (r.baseline)
         h << ", against " << r.irradianceProbes.x << "x" << r.irradianceProbes.y << "x" << r.irradianceProbes.z
           << " L2 SH irradiance probes of the volume's bytes";
-    h << ". Over each object's interior pixels:</p>\n<table><tr><th>object</th><th>pixels</th><th>relMSE asset</th>";
+    h << ". Over each object's interior pixels, against the reference and (every other pixel) against the exact light "
+      << "in the volume: D(x, n) path traced in the scene without the objects, shaded alike, the floor of any volume "
+      << "representation (the reference also holds what the objects do to their surroundings: their own shadows):</p>\n<table><tr><th>object</th><th>pixels</th><th>relMSE asset</th>";
     if (r.baseline) h << "<th>relMSE SH probes</th><th>SH / asset</th>";
     h << "<th>mean / reference (asset)</th>";
     if (r.baseline) h << "<th>mean / reference (SH)</th>";
+    h << "<th>relMSE exact volume light</th><th>asset against it</th>";
+    if (r.baseline) h << "<th>SH against it</th>";
     h << "</tr>\n";
     for (const InsertedFigure& f : r.inserted) {
         h << "<tr><td>" << escape(f.name) << "</td><td>" << f.pixels << "</td><td>" << fmt("%.4g", f.neuralRelMse) << "</td>";
@@ -601,6 +609,8 @@ static void htmlInserted(std::ostringstream& h, const ValidationResult& r) {
               << fmt("%.3g", f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0) << "</td>";
         h << "<td>" << fmt("%.3f", f.neuralMeanRatio) << "</td>";
         if (r.baseline) h << "<td>" << fmt("%.3f", f.baselineMeanRatio) << "</td>";
+        h << "<td>" << fmt("%.4g", f.exactRelMse) << "</td><td>" << fmt("%.4g", f.neuralVsExact) << "</td>";
+        if (r.baseline) h << "<td>" << fmt("%.4g", f.baselineVsExact) << "</td>";
         h << "</tr>\n";
     }
     h << "</table>\n";

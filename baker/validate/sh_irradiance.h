@@ -45,8 +45,8 @@ struct ShIrradianceStats {
     double seconds = 0.0;
 };
 
-// The largest probe grid over lower..upper whose bytes() fit in byteBudget, its spacing as even as the box
-// allows (at least 1 probe per axis).
+// The probe grid over lower..upper for byteBudget: from one probe, a probe more along the axis of the widest
+// spacing while bytes() stays within the budget (at least 1 probe per axis).
 glm::uvec3 irradianceDimsForBudget(const glm::vec3& lower, const glm::vec3& upper, size_t byteBudget);
 
 // Fits each probe by least squares to E / pi at its receivers, estimated by `tracer` (as the asset's volume is

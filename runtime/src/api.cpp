@@ -223,10 +223,10 @@ NradStatus nradShadeBatch(NradAsset a, size_t count, const float* positions, con
 NradStatus nradShadeGBuffer(NradAsset a, const NradGBuffer* g, void* scratch, size_t scratchBytes) {
     if (!a || !g || g->structSize != sizeof(NradGBuffer)) return NRAD_ERROR_INVALID_ARGUMENT;
     if (g->count == 0) return NRAD_OK;
-    const bool eye = (g->flags & NRAD_GBUFFER_EYE) != 0;
+    const bool eye = (g->flags & NRAD_GBUFFER_EYE) != 0, volume = (g->flags & NRAD_GBUFFER_VOLUME) != 0;
     auto valid = [](const NradAttribute& at) { return at.data && at.format <= NRAD_FORMAT_F16; };
-    if ((g->flags & ~(NRAD_GBUFFER_EYE | NRAD_GBUFFER_UNIT_VECTORS)) || !valid(g->position) || !valid(g->normal) ||
-        (!eye && !valid(g->direction)) || !g->output || g->outputFormat > NRAD_FORMAT_F16 ||
+    if ((g->flags & ~(NRAD_GBUFFER_EYE | NRAD_GBUFFER_UNIT_VECTORS | NRAD_GBUFFER_VOLUME)) || (volume && !a->volume) ||
+        !valid(g->position) || !valid(g->normal) || (!eye && !(volume && !g->surfaces) && !valid(g->direction)) || !g->output || g->outputFormat > NRAD_FORMAT_F16 ||
         (g->outputChannels != 3 && g->outputChannels != 4) || (scratch && scratchBytes < rt::kScratchBytes + rt::kGBufferScratchBytes))
         return NRAD_ERROR_INVALID_ARGUMENT;
     return guarded([&] {

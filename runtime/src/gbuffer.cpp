@@ -14,8 +14,9 @@
 namespace nrad::rt {
 namespace {
 
-// The final radiance of one point from what the asset returned there (nradShadeBatch's contract).
-void shadeOne(const NradAsset_& a, const NradSurface& in, const float n[3], const float d[3], float rgb[3]) {
+// The final radiance of one point from what the asset returned there (nradShadeBatch's contract; for the volume
+// query, eval::shadeVolume's).
+void shadeOne(const NradAsset_& a, bool volume, const NradSurface& in, const float n[3], const float d[3], float rgb[3]) {
     eval::Surface s;
     for (int c = 0; c < 3; ++c) {
         s.baseColor[c] = in.baseColor[c];
@@ -26,7 +27,8 @@ void shadeOne(const NradAsset_& a, const NradSurface& in, const float n[3], cons
     s.specular = in.specular;
     const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
     float out[3];
-    eval::shade(a.asset.header.flags, rgb, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+    if (volume) eval::shadeVolume(rgb, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+    else eval::shade(a.asset.header.flags, rgb, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
     for (int c = 0; c < 3; ++c) rgb[c] = std::isfinite(out[c]) ? out[c] : 0.0f;
 }
 
@@ -81,25 +83,30 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
     GBufferTile& t = *reinterpret_cast<GBufferTile*>(tileAt);
     const HalfConverters conv = halfConverters(kernelOf(a));
     const bool eye = (g.flags & NRAD_GBUFFER_EYE) != 0, unit = (g.flags & NRAD_GBUFFER_UNIT_VECTORS) != 0;
+    // The volume query: its own networks, the normal as their direction input; the viewer's direction (if any)
+    // only shades. Through the gather path (the block drivers read one direction for both).
+    const bool volume = (g.flags & NRAD_GBUFFER_VOLUME) != 0;
+    const bool directions = eye || !volume || g.surfaces;
+    const NradAsset_& net = volume ? *a.volume : a;
     const bool half = g.outputFormat == NRAD_FORMAT_F16;
     const size_t channels = g.outputChannels, pixel = channels * (half ? 2 : 4);
     const size_t outStride = g.outputStride ? g.outputStride : pixel;
     const size_t surfaceStride = g.surfaceStride ? g.surfaceStride : sizeof(NradSurface);
     int width = 0;
-    const bool fused = blockDriverOf(a, width) != nullptr;
+    const bool fused = !volume && blockDriverOf(a, width) != nullptr;
     for (size_t first = 0; first < g.count; first += kTilePoints) {
         const size_t n = std::min(kTilePoints, g.count - first);
         // The points the block driver will not read: all of them without one, else the last partial vector.
         const size_t from = fused ? n / size_t(width) * size_t(width) : 0;
         gather(g.position, first + from, n - from, t.p + 3 * from, t.halves, conv);
         gather(g.normal, first + from, n - from, t.n + 3 * from, t.halves, conv);
-        if (!eye) gather(g.direction, first + from, n - from, t.d + 3 * from, t.halves, conv);
+        if (!eye && directions) gather(g.direction, first + from, n - from, t.d + 3 * from, t.halves, conv);
         if (eye || !unit)
             for (size_t j = from; j < n; ++j) {
                 float* d = t.d + 3 * j;
                 if (eye)
                     for (int k = 0; k < 3; ++k) d[k] = g.eye[k] - t.p[3 * j + size_t(k)];
-                normalise(d);
+                if (directions) normalise(d);
                 if (!unit) normalise(t.n + 3 * j);
             }
         GBufferIo io{};
@@ -132,10 +139,11 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
                 io.contentFlags = a.asset.header.flags;
             }
         }
-        const BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {t.d, t.d + 1, t.d + 2},
+        const float* dirs = volume ? t.n : t.d;
+        const BatchIo v{{t.p, t.p + 1, t.p + 2}, {t.n, t.n + 1, t.n + 2}, {dirs, dirs + 1, dirs + 2},
                             {t.rgb, t.rgb + 1, t.rgb + 2}, 3, g.pointFlags ? g.pointFlags + first : nullptr,
                             fused ? &io : nullptr};
-        evaluateTile(a, n, v, s);
+        evaluateTile(net, n, v, s);
         // The pixels the driver did not write, run by run: the output's channels in fp32, shaded where asked,
         // then converted and stored with the output's stride.
         for (size_t runStart = 0; runStart < n;) {
@@ -151,7 +159,7 @@ void shadeGBuffer(const NradAsset_& a, const NradGBuffer& g, void* scratch) {
                 if (g.surfaces) {
                     NradSurface surface;  // any alignment
                     std::memcpy(&surface, reinterpret_cast<const uint8_t*>(g.surfaces) + (first + j) * surfaceStride, sizeof surface);
-                    shadeOne(a, surface, t.n + 3 * j, t.d + 3 * j, rgb);
+                    shadeOne(a, volume, surface, t.n + 3 * j, t.d + 3 * j, rgb);
                 }
                 float* c = t.color + channels * (j - runStart);
                 c[0] = rgb[0];

@@ -6,6 +6,8 @@
 // - Network evaluations/s through the public API (nradEvaluateBatch, 64k points per call) on a 3x3x3
 //   asset of 9-9-3 fp16 networks, for coherent batches (points sorted by voxel) and incoherent ones
 //   (random voxels), per kernel, on 1 thread and on all threads; printed as a fraction of the peak.
+// - The volume query (nradEvaluateVolumeBatch: the light in the volume, issue 42) on the same points, as a multiple
+//   of the surface evaluation's cost.
 // - What engines do today, next to it: a trilinear lookup in a grid of L2 spherical-harmonics radiance
 //   probes (9 RGB coefficients) holding the same number of bytes as the networks, evaluated in the view
 //   direction; lookups/s on one thread.
@@ -72,7 +74,8 @@ Points makePoints(size_t count, bool coherent, const nrad::format::Grid& g, uint
     return pts;
 }
 
-double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int repeat) {
+// volume: nradEvaluateVolumeBatch (the light in the volume at the points and normals) instead of nradEvaluateBatch.
+double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int repeat, bool volume = false) {
     const size_t count = pts.p.size() / 3, batch = 65536;
     std::vector<std::vector<float>> out(size_t(threads), std::vector<float>(3 * batch));
     double best = 0.0;
@@ -84,7 +87,8 @@ double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int
             pool.emplace_back([&, t] {
                 for (size_t b; (b = next.fetch_add(batch)) < count;) {
                     size_t n = std::min(batch, count - b);
-                    nradEvaluateBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], &pts.d[3 * b], out[size_t(t)].data(), nullptr);
+                    if (volume) nradEvaluateVolumeBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], out[size_t(t)].data(), nullptr);
+                    else nradEvaluateBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], &pts.d[3 * b], out[size_t(t)].data(), nullptr);
                 }
             });
         for (auto& t : pool) t.join();
@@ -172,6 +176,9 @@ int main(int argc, char** argv) {
     std::uniform_real_distribution<float> u(-0.5f, 0.5f);
     for (uint32_t v = 0; v < 27; ++v) a.voxels.push_back({v, 1.0f});
     for (size_t i = 0; i < 27 * a.topology.parameterCount(); ++i) a.weights.push_back(u(rng));
+    // The light in the volume (issue 42): networks of the same cells, queried at points and normals.
+    for (uint32_t v = 0; v < 27; ++v) a.volumeVoxels.push_back({v, 1.0f});
+    for (size_t i = 0; i < 27 * a.topology.parameterCount(); ++i) a.volumeWeights.push_back(u(rng));
     a.topology.outputTransform = std::getenv("NRAD_BENCH_LINEAR") ? nrad::format::OutputTransform::ClampedLinear : nrad::format::OutputTransform::Exponential;
     if (band > 0.0f) {
         a.header.flags |= nrad::format::kFlagBlended;
@@ -207,6 +214,13 @@ int main(int argc, char** argv) {
             }
         }
         nradSelectKernel(NRAD_KERNEL_AUTO);
+        // The volume query against the surface evaluation, same kernel (the best), same points (goal: <= 2x the cost).
+        for (int coh = 1; coh >= 0; --coh) {
+            const double surface = evaluationsPerSecond(asset, coh ? coherent : incoherent, threads, repeat);
+            const double volume = evaluationsPerSecond(asset, coh ? coherent : incoherent, threads, repeat, true);
+            std::printf("  volume query (nradEvaluateVolumeBatch), %s: %.1f M/s, %.2fx the cost of a surface evaluation (%.1f M/s)\n",
+                        coh ? "coherent" : "incoherent", volume * 1e-6, surface / volume, surface * 1e-6);
+        }
     }
 
     // A G-buffer as an engine holds it: a 1920 x 1080 frame of texels (position fp32, normal and direction

@@ -446,5 +446,69 @@ TEST(GBuffer, BadDescriptionsAreRefused) {
     EXPECT_EQ(nradShadeGBuffer(f.asset.get(), nullptr, nullptr, 0), NRAD_ERROR_INVALID_ARGUMENT);
 }
 
+// NRAD_GBUFFER_VOLUME (issue 42): receivers that were not in the bake, through the asset's volume networks with the
+// normal as their direction, shaded by eval::shadeVolume with the viewer's direction: nradEvaluateVolumeBatch and
+// shadeVolume on the same values in fp32, bit for bit; evaluate-only needs no direction.
+TEST(GBuffer, TheVolumeQueryMatchesTheVolumeBatchAndShadeVolume) {
+    Fixture f(3000);
+    nrad::Asset plain;
+    {
+        const std::vector<uint8_t> bytes = format::encode(f.source);
+        ASSERT_EQ(plain.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    }
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+    f.source.volumeVoxels = f.source.voxels;
+    for (size_t i = 0; i < f.source.weights.size(); ++i) f.source.volumeWeights.push_back(u(rng));
+    const std::vector<uint8_t> bytes = format::encode(f.source);
+    ASSERT_EQ(f.asset.loadFromMemory(bytes.data(), bytes.size()), NRAD_OK);
+    const size_t count = f.texels.size();
+    for (bool eyeMode : {false, true})
+        for (bool shade : {false, true}) {
+            f.referenceInputs(eyeMode);
+            std::vector<float> expected(3 * count), got(3 * count, -1.0f);
+            std::vector<uint8_t> expectedFlags(count), flags(count);
+            ASSERT_EQ(nradEvaluateVolumeBatch(f.asset.get(), count, f.p.data(), f.n.data(), expected.data(), expectedFlags.data()), NRAD_OK);
+            if (shade)
+                for (size_t i = 0; i < count; ++i) {
+                    const NradSurface& in = f.surfaces[i];
+                    eval::Surface s;
+                    for (int c = 0; c < 3; ++c) s.baseColor[c] = in.baseColor[c], s.emission[c] = in.emission[c];
+                    s.metallic = in.metallic;
+                    s.roughness = in.roughness;
+                    s.specular = in.specular;
+                    const float* n = &f.n[3 * i];
+                    const float* d = &f.d[3 * i];
+                    const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+                    float out[3];
+                    eval::shadeVolume(&expected[3 * i], s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+                    for (int c = 0; c < 3; ++c) expected[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
+                }
+            NradGBuffer g = f.describe(eyeMode);
+            g.flags |= NRAD_GBUFFER_VOLUME;
+            if (!shade && !eyeMode) g.direction = {nullptr, 0, NRAD_FORMAT_F32};  // not read
+            if (shade) g.surfaces = f.surfaces.data();
+            g.output = got.data();
+            g.outputFormat = NRAD_FORMAT_F32;
+            g.outputChannels = 3;
+            g.pointFlags = flags.data();
+            ASSERT_EQ(nradShadeGBuffer(f.asset.get(), &g, nullptr, 0), NRAD_OK);
+            for (size_t i = 0; i < 3 * count; ++i)
+                ASSERT_EQ(got[i], expected[i]) << "eye " << eyeMode << " shade " << shade << " value " << i;
+            EXPECT_EQ(flags, expectedFlags);
+            // The same description against the surfaces' networks reads something else, and an asset without
+            // volume networks refuses it.
+            if (shade) {
+                NradGBuffer surfacesOnly = g;
+                surfacesOnly.flags &= ~NRAD_GBUFFER_VOLUME;
+                std::vector<float> other(3 * count);
+                surfacesOnly.output = other.data();
+                ASSERT_EQ(nradShadeGBuffer(f.asset.get(), &surfacesOnly, nullptr, 0), NRAD_OK);
+                EXPECT_NE(other, got);
+            }
+            EXPECT_EQ(nradShadeGBuffer(plain.get(), &g, nullptr, 0), NRAD_ERROR_INVALID_ARGUMENT);
+        }
+}
+
 }  // namespace
 }  // namespace nrad

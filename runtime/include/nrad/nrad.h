@@ -241,6 +241,11 @@ typedef struct NradAttribute {
 
 #define NRAD_GBUFFER_EYE 1u          /* directions from `eye`: normalize(eye - position); `direction` unused */
 #define NRAD_GBUFFER_UNIT_VECTORS 2u /* normals and directions are unit length already: not normalised */
+/* The points are receivers that were not in the bake (moving objects): the asset's volume query at each position
+ * and normal (nradEvaluateVolumeBatch; the asset must have volume networks, else NRAD_ERROR_INVALID_ARGUMENT), and
+ * with `surfaces` the receiver's radiance towards the viewer by nrad/eval.h's shadeVolume: its reflectance times
+ * the query plus its emission. `direction` (or `eye`) is read only for shading: evaluate-only may leave it null. */
+#define NRAD_GBUFFER_VOLUME 4u
 
 /* A G-buffer (or any batch of surface points) as an engine holds it. Normals and directions are normalised on
  * input unless NRAD_GBUFFER_UNIT_VECTORS; a zero or non-finite one makes the point NRAD_POINT_INVALID_INPUT. */
