@@ -19,6 +19,10 @@
 //       what the asset stores at the point (NRAD_CONTENT_* in nradContentFlags()); returns NRAD_POINT_* flags
 //   uint nradShade(vec3 position, vec3 normal, vec3 towardsViewer, NradSurface surface, out vec3 radiance)
 //       the final radiance towards the viewer (reflectance and emission recombined as the asset says)
+//   uint nradEvaluateVolume(vec3 position, vec3 normal, out vec3 radiance)
+//       the light in the volume, E(x, n) / pi, for receivers that were not in the bake (moving objects)
+//   uint nradShadeVolume(vec3 position, vec3 normal, vec3 towardsViewer, NradSurface surface, out vec3 radiance)
+//       such a receiver's radiance towards the viewer (eval.h's shadeVolume)
 // Normals and directions unit length, world space, the normal on the viewer's side (as nradEvaluateBatch).
 #ifndef NRAD_GLSL
 #define NRAD_GLSL
@@ -209,8 +213,9 @@ int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
 
 // ----- the network and its output (eval.h: forward, expMinusOne, decodeOutput) -----------------------------
 
+// The fp16 parameter at half index `index` of the buffer (two per word, the low half first).
 float nradWeight(uint index) {
-    vec2 pair = unpackHalf2x16(nradWords[nradWords[NRAD_GPU_WORD_WEIGHTS] + (index >> 1u)]);
+    vec2 pair = unpackHalf2x16(nradWords[index >> 1u]);
     return (index & 1u) != 0u ? pair.y : pair.x;
 }
 
@@ -281,13 +286,14 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
     return vec3(a[0], a[1], a[2]);
 }
 
-// Radiance of network `net` (decoded: transform, scale, clamped to [0, 1e30]) for the nine inputs.
-vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
-    uint w = uint(net) * nradWords[NRAD_GPU_WORD_PARAMS];  // half index of the network's first parameter
+// Radiance of network `net` (decoded: transform, scale, clamped to [0, 1e30]) for the nine inputs; `scales` and
+// `weights`: the word offsets of the networks' output scales and fp16 weights (the surfaces' or the volume's).
+vec3 nradNetwork(uint scales, uint weights, int net, vec3 local, vec3 normal, vec3 direction) {
+    uint w = 2u * weights + uint(net) * nradWords[NRAD_GPU_WORD_PARAMS];  // half index of the network's first parameter
     bool default993 = nradWords[NRAD_GPU_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_GPU_WORD_HIDDEN_WIDTHS] == 9u;
     vec3 y = default993 ? nradForward993(w, local, normal, direction) : nradForward(w, local, normal, direction);
     bool exponential = nradWords[NRAD_GPU_WORD_OUTPUT_TRANSFORM] == 1u;
-    float scale = nradFloat(nradWords[NRAD_GPU_WORD_SCALES] + uint(net));
+    float scale = nradFloat(scales + uint(net));
     vec3 rgb;
     for (int c = 0; c < 3; ++c) {
         float v = (exponential ? nradExpMinusOne(y[c]) : y[c]) * scale;
@@ -299,8 +305,10 @@ vec3 nradNetwork(int net, vec3 local, vec3 normal, vec3 direction) {
 
 // ----- evaluation ---------------------------------------------------------------------------------------------
 
-uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
-    radiance = vec3(0.0);
+// The networks at a point: those of the cell table at word `table` (the surfaces' or the volume's, whose scales
+// and weights are at words `scales` and `weightWords`), blended by the partition's supports.
+uint nradEvaluateNetworks(uint table, uint scales, uint weightWords, vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
+    radiance = vec3(0.0, 0.0, 0.0);
     if (!nradFinite3(position) || !nradFinite3(normal) || !nradFinite3(direction)) return NRAD_POINT_INVALID_INPUT;
     int cells[NRAD_MAX_SUPPORTS];
     float weights[NRAD_MAX_SUPPORTS];
@@ -309,7 +317,6 @@ uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance)
                                                       : nradTreeSupports(position, cells, weights, locals);
     if (count == 0) return NRAD_POINT_OUTSIDE_GRID;
     // keepOccupied: drop supports without a network (or weight 0), renormalise the rest in order.
-    uint table = nradWords[NRAD_GPU_WORD_CELL_TABLE];
     int nets[NRAD_MAX_SUPPORTS];
     int kept = 0;
     float sum = 0.0;
@@ -324,8 +331,24 @@ uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance)
         }
     }
     if (kept == 0) return NRAD_POINT_EMPTY_VOXEL;
-    for (int i = 0; i < kept; ++i) radiance += (weights[i] / sum) * nradNetwork(nets[i], locals[i], normal, direction);
+    for (int i = 0; i < kept; ++i) radiance += (weights[i] / sum) * nradNetwork(scales, weightWords, nets[i], locals[i], normal, direction);
     return NRAD_POINT_OK;
+}
+
+uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
+    return nradEvaluateNetworks(nradWords[NRAD_GPU_WORD_CELL_TABLE], nradWords[NRAD_GPU_WORD_SCALES], nradWords[NRAD_GPU_WORD_WEIGHTS],
+                                position, normal, direction, radiance);
+}
+
+// The light in the volume (nradEvaluateVolumeBatch): E(x, n) / pi at any point of the grid for a unit normal, from the
+// volume's networks (the normal is their direction input too). An asset without them: 0, NRAD_POINT_EMPTY_VOXEL.
+uint nradEvaluateVolume(vec3 position, vec3 normal, out vec3 radiance) {
+    if (nradWords[NRAD_GPU_WORD_VOLUME_NETWORKS] == 0u) {
+        radiance = vec3(0.0, 0.0, 0.0);
+        return nradFinite3(position) && nradFinite3(normal) ? NRAD_POINT_EMPTY_VOXEL : NRAD_POINT_INVALID_INPUT;
+    }
+    return nradEvaluateNetworks(nradWords[NRAD_GPU_WORD_VOLUME_CELL_TABLE], nradWords[NRAD_GPU_WORD_VOLUME_SCALES],
+                                nradWords[NRAD_GPU_WORD_VOLUME_WEIGHTS], position, normal, normal, radiance);
 }
 
 // ----- shading (eval.h: exp2Poly, reflectance, shade) ---------------------------------------------------------------
@@ -364,6 +387,20 @@ uint nradShade(vec3 position, vec3 normal, vec3 direction, NradSurface surface, 
     vec3 e = vec3(0.0);
     if ((content & NRAD_CONTENT_SCATTERED_RADIANCE) != 0u)
         for (int c = 0; c < 3; ++c) e[c] = nradFinite(surface.emission[c]) ? surface.emission[c] : 0.0;
+    radiance = r * stored + e;
+    for (int c = 0; c < 3; ++c) radiance[c] = nradFinite(radiance[c]) ? radiance[c] : 0.0;
+    return flags;
+}
+
+// A receiver that was not in the bake (eval.h: shadeVolume): its reflectance times the volume's light, plus its
+// emission, towards the viewer.
+uint nradShadeVolume(vec3 position, vec3 normal, vec3 direction, NradSurface surface, out vec3 radiance) {
+    vec3 stored;
+    uint flags = nradEvaluateVolume(position, normal, stored);
+    float cosNV = dot(normal, direction);
+    vec3 r = nradReflectance(surface, nradFinite(cosNV) ? cosNV : 0.0);
+    vec3 e = vec3(0.0, 0.0, 0.0);
+    for (int c = 0; c < 3; ++c) e[c] = nradFinite(surface.emission[c]) ? surface.emission[c] : 0.0;
     radiance = r * stored + e;
     for (int c = 0; c < 3; ++c) radiance[c] = nradFinite(radiance[c]) ? radiance[c] : 0.0;
     return flags;

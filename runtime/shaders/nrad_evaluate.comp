@@ -3,7 +3,8 @@
 // buffers in set 0: 0 the packed asset; 1 positions, 2 normals, 3 directions (3 floats per point, interleaved
 // xyz); 4 surfaces (9 floats per point, nrad.h's NradSurface: base colour, metallic, roughness, specular,
 // emission; read only when shading); 5 radiance out (3 floats per point); 6 flags out (a uint per point).
-// Push constants: the count and whether to shade. Dispatch ceil(count / 64) workgroups along x (Vulkan
+// Push constants: the count and the mode: 0 evaluate, 1 shade (the surfaces' networks), 2 evaluate, 3 shade the light
+// in the volume (nradEvaluateVolume, nradShadeVolume: receivers that were not in the bake; directions only shade). Dispatch ceil(count / 64) workgroups along x (Vulkan
 // guarantees 65,535: up to 4,194,240 points per dispatch; split larger batches).
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -22,7 +23,7 @@ layout(std430, set = 0, binding = 6) writeonly buffer Flags { uint flags[]; };
 
 layout(push_constant) uniform Batch {
     uint count;
-    uint shade;
+    uint mode;
 } batch;
 
 vec3 load3(uint i, uint which) {
@@ -37,7 +38,7 @@ void main() {
     vec3 p = load3(i, 0u), n = load3(i, 1u), d = load3(i, 2u);
     vec3 rgb;
     uint f;
-    if (batch.shade != 0u) {
+    if ((batch.mode & 1u) != 0u) {
         uint s = 9u * i;
         NradSurface surface;
         surface.baseColor = vec3(surfaces[s], surfaces[s + 1u], surfaces[s + 2u]);
@@ -45,9 +46,9 @@ void main() {
         surface.roughness = surfaces[s + 4u];
         surface.specular = surfaces[s + 5u];
         surface.emission = vec3(surfaces[s + 6u], surfaces[s + 7u], surfaces[s + 8u]);
-        f = nradShade(p, n, d, surface, rgb);
+        f = batch.mode == 3u ? nradShadeVolume(p, n, d, surface, rgb) : nradShade(p, n, d, surface, rgb);
     } else {
-        f = nradEvaluate(p, n, d, rgb);
+        f = batch.mode == 2u ? nradEvaluateVolume(p, n, rgb) : nradEvaluate(p, n, d, rgb);
     }
     radiance[3u * i] = rgb.x;
     radiance[3u * i + 1u] = rgb.y;

@@ -32,6 +32,12 @@
 #define NRAD_GPU_WORD_BOXES 34u
 #define NRAD_GPU_WORD_WEIGHTS 35u
 #define NRAD_GPU_WORD_TOTAL 36u
+// The light in the volume (format 2.4's VVOX/VWGT; all 0 for an asset without it): its networks' count, then the
+// word offsets of its cell -> network table, its output scales and its fp16 weights (laid out as the surfaces').
+#define NRAD_GPU_WORD_VOLUME_NETWORKS 37u
+#define NRAD_GPU_WORD_VOLUME_CELL_TABLE 38u
+#define NRAD_GPU_WORD_VOLUME_SCALES 39u
+#define NRAD_GPU_WORD_VOLUME_WEIGHTS 40u
 
 // A tree node's first word is `axis | split << 2` (the file's TREE record); this axis marks a leaf.
 #define NRAD_GPU_TREE_LEAF 3u

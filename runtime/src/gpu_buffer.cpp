@@ -24,7 +24,8 @@ struct GpuHeader {
     uint32_t hiddenLayers, hiddenWidths[NRAD_MAX_HIDDEN_LAYERS];
     uint32_t paramsPerNetwork, networks, cells, treeNodes;
     uint32_t cellTable, scales, nodes, widths, boxes, weights, total;  // the sections' word offsets, the size
-    uint32_t reserved[NRAD_GPU_HEADER_WORDS - NRAD_GPU_WORD_TOTAL - 1];  // zero
+    uint32_t volumeNetworks, volumeCellTable, volumeScales, volumeWeights;  // 0 without volume networks
+    uint32_t reserved[NRAD_GPU_HEADER_WORDS - NRAD_GPU_WORD_VOLUME_WEIGHTS - 1];  // zero
 };
 #define NRAD_AT_WORD(field, word) static_assert(offsetof(GpuHeader, field) == 4 * (word), #field " is not at " #word)
 NRAD_AT_WORD(magic, NRAD_GPU_WORD_MAGIC);
@@ -49,6 +50,10 @@ NRAD_AT_WORD(widths, NRAD_GPU_WORD_WIDTHS);
 NRAD_AT_WORD(boxes, NRAD_GPU_WORD_BOXES);
 NRAD_AT_WORD(weights, NRAD_GPU_WORD_WEIGHTS);
 NRAD_AT_WORD(total, NRAD_GPU_WORD_TOTAL);
+NRAD_AT_WORD(volumeNetworks, NRAD_GPU_WORD_VOLUME_NETWORKS);
+NRAD_AT_WORD(volumeCellTable, NRAD_GPU_WORD_VOLUME_CELL_TABLE);
+NRAD_AT_WORD(volumeScales, NRAD_GPU_WORD_VOLUME_SCALES);
+NRAD_AT_WORD(volumeWeights, NRAD_GPU_WORD_VOLUME_WEIGHTS);
 #undef NRAD_AT_WORD
 static_assert(sizeof(GpuHeader) == 4 * NRAD_GPU_HEADER_WORDS, "the header is NRAD_GPU_HEADER_WORDS words");
 static_assert(NRAD_GPU_TREE_LEAF == format::kTreeLeaf, "tree nodes are packed as the file's TREE records");
@@ -88,6 +93,12 @@ GpuHeader headerOf(const NradAsset_& a, const GpuLayout& l) {
     h.boxes = uint32_t(l.boxes);
     h.weights = uint32_t(l.weights);
     h.total = uint32_t(l.total);
+    if (a.volume) {
+        h.volumeNetworks = uint32_t(a.volume->asset.voxels.size());
+        h.volumeCellTable = uint32_t(l.volumeCellTable);
+        h.volumeScales = uint32_t(l.volumeScales);
+        h.volumeWeights = uint32_t(l.volumeWeights);
+    }
     return h;
 }
 
@@ -108,6 +119,13 @@ NradStatus gpuLayoutOf(const NradAsset_& a, GpuLayout& l) {
     l.boxes = l.widths + nodes;
     l.weights = l.boxes + 6 * leaves;
     l.total = l.weights + (halves + 1) / 2;
+    if (a.volume) {  // the volume's table, scales and weights after the surfaces'
+        const uint64_t volumeNetworks = a.volume->asset.voxels.size();
+        l.volumeCellTable = l.total;
+        l.volumeScales = l.volumeCellTable + a.partition.cells;
+        l.volumeWeights = l.volumeScales + volumeNetworks;
+        l.total = l.volumeWeights + (volumeNetworks * a.paramsPerNetwork + 1) / 2;
+    }
     return l.total * 4 <= UINT32_MAX ? NRAD_OK : NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT;  // offsets are 32-bit words
 }
 
@@ -134,6 +152,15 @@ void packGpuBuffer(const NradAsset_& a, const GpuLayout& l, uint32_t* w) {
     const std::vector<float>& weights = a.asset.weights;
     for (size_t i = 0; i < weights.size(); ++i)
         w[l.weights + i / 2] |= uint32_t(format::floatToHalf(weights[i])) << (16 * (i & 1));
+    if (!a.volume) return;
+    const NradAsset_& v = *a.volume;
+    for (uint64_t c = 0; c < a.partition.cells; ++c) w[l.volumeCellTable + c] = UINT32_MAX;
+    for (size_t i = 0; i < v.asset.voxels.size(); ++i) {
+        w[l.volumeCellTable + v.asset.voxels[i].index] = uint32_t(i);
+        w[l.volumeScales + i] = bitsOf(v.scales[i]);
+    }
+    for (size_t i = 0; i < v.asset.weights.size(); ++i)
+        w[l.volumeWeights + i / 2] |= uint32_t(format::floatToHalf(v.asset.weights[i])) << (16 * (i & 1));
 }
 
 }  // namespace nrad::rt

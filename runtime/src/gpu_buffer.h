@@ -10,6 +10,7 @@ namespace nrad::rt {
 // The sections' word offsets in the buffer, and its size in words.
 struct GpuLayout {
     uint64_t cellTable, scales, nodes, widths, boxes, weights, total;
+    uint64_t volumeCellTable = 0, volumeScales = 0, volumeWeights = 0;  // the light in the volume (0: none)
 };
 
 // The asset's layout; NRAD_ERROR_UNSUPPORTED_GPU_LAYOUT beyond the layout's limits.

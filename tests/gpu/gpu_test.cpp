@@ -3,6 +3,7 @@
 // other topologies, fp32 weights), and whole G-buffers of every bundled scene's baked asset, evaluated and
 // shaded. Label `gpu`. Without a Vulkan device the tests skip with the reason; NRAD_REQUIRE_VULKAN=1 (set
 // by ./run.sh, which installs lavapipe) turns that into a failure, so CI can never pass them by skipping.
+#include <nrad/eval.h>
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 #include <nrad/nrad.hpp>
@@ -59,8 +60,9 @@ struct Result {
     std::vector<uint32_t> flags;
 };
 
-// Evaluates (shade = false) or shades the points with the compute shader.
-Result runOnGpu(gpu::VulkanCompute& vk, const nrad::Asset& asset, const GBuffer& g, bool shade, double* ms = nullptr) {
+// Evaluates (shade = false) or shades the points with the compute shader (volume: the light in the volume).
+Result runOnGpu(gpu::VulkanCompute& vk, const nrad::Asset& asset, const GBuffer& g, bool shade, double* ms = nullptr,
+                bool volume = false) {
     size_t bytes = 0;
     EXPECT_EQ(nradGetGpuBufferSize(asset.get(), &bytes), NRAD_OK);
     std::vector<uint32_t> packed(bytes / 4);
@@ -74,7 +76,7 @@ Result runOnGpu(gpu::VulkanCompute& vk, const nrad::Asset& asset, const GBuffer&
     vk.upload(b[2], g.normals.data(), 12 * n);
     vk.upload(b[3], g.directions.data(), 12 * n);
     if (shade) vk.upload(b[4], g.surfaces.data(), sizeof(NradSurface) * n);
-    const uint32_t push[2] = {uint32_t(n), shade ? 1u : 0u};
+    const uint32_t push[2] = {uint32_t(n), (shade ? 1u : 0u) | (volume ? 2u : 0u)};
     const double t = vk.dispatch(p, b, push, uint32_t((n + 63) / 64));
     if (ms) *ms = t;
     Result r;
@@ -97,6 +99,32 @@ Result runOnCpu(const nrad::Asset& asset, const GBuffer& g, bool shade) {
     else
         EXPECT_EQ(asset.evaluateBatch(n, g.positions.data(), g.normals.data(), g.directions.data(), r.rgb.data(), f.data()),
                   NRAD_OK);
+    r.flags.assign(f.begin(), f.end());
+    return r;
+}
+
+// The light in the volume on the CPU: nradEvaluateVolumeBatch, shaded by eval::shadeVolume as nradShadeGBuffer does.
+Result runVolumeOnCpu(const nrad::Asset& asset, const GBuffer& g, bool shade) {
+    const size_t n = g.count();
+    Result r;
+    r.rgb.resize(3 * n);
+    std::vector<uint8_t> f(n);
+    EXPECT_EQ(nradEvaluateVolumeBatch(asset.get(), n, g.positions.data(), g.normals.data(), r.rgb.data(), f.data()), NRAD_OK);
+    if (shade)
+        for (size_t i = 0; i < n; ++i) {
+            const NradSurface& in = g.surfaces[i];
+            eval::Surface s;
+            for (int c = 0; c < 3; ++c) s.baseColor[c] = in.baseColor[c], s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
+            s.metallic = in.metallic;
+            s.roughness = in.roughness;
+            s.specular = in.specular;
+            const float* nn = &g.normals[3 * i];
+            const float* d = &g.directions[3 * i];
+            const float cosNV = nn[0] * d[0] + nn[1] * d[1] + nn[2] * d[2];
+            float out[3];
+            eval::shadeVolume(&r.rgb[3 * i], s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
+            for (int c = 0; c < 3; ++c) r.rgb[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
+        }
     r.flags.assign(f.begin(), f.end());
     return r;
 }
@@ -198,6 +226,60 @@ TEST(Gpu, RandomBatchesMatchTheCpuRuntime) {
             EXPECT_LE(r.worst, kRelativeTolerance) << c.name << (shade ? " shaded" : " evaluated");
         }
     }
+}
+
+// The light in the volume (issue 42): nradEvaluateVolume and nradShadeVolume against nradEvaluateVolumeBatch and
+// eval::shadeVolume, on grid and tree assets, blended or not; the surfaces' evaluation beside them unchanged.
+TEST(Gpu, VolumeQueryMatchesTheCpuRuntime) {
+    NRAD_NEED_VULKAN();
+    const GBuffer points = randomPoints(20000, 12);
+    for (bool tree : {false, true})
+        for (float band : {0.0f, 0.125f}) {
+            format::Asset a = test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 11,
+                                                glm::uvec3(4, 3, 5), band);
+            if (tree) {
+                for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
+                a.header.flags |= format::kFlagTree;
+                a.tree = test::randomTree(a.grid.dims, 90, 8);
+                uint32_t leaves = 0;
+                ASSERT_TRUE(format::validateTree(a.grid.dims, a.tree, leaves));
+                a.voxels.clear();
+                for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
+                a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+            }
+            std::mt19937 rng(21);
+            std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+            for (float& w : a.weights) w = format::halfToFloat(format::floatToHalf(u(rng)));
+            // The volume's networks in other cells than the surfaces' (every third), other scales and weights.
+            a.volumeVoxels.clear();
+            for (uint32_t c = 0; c < (tree ? 90u : 60u); c += 3) a.volumeVoxels.push_back({c, 0.25f + 0.01f * float(c)});
+            a.volumeWeights.resize(a.volumeVoxels.size() * a.topology.parameterCount());
+            for (float& w : a.volumeWeights) w = format::halfToFloat(format::floatToHalf(u(rng)));
+            a.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;
+            nrad::Asset asset = load(a);
+            for (bool shade : {false, true}) {
+                const Agreement r = compare(runOnGpu(*vk, asset, points, shade, nullptr, true), runVolumeOnCpu(asset, points, shade));
+                std::printf("volume, %s%s %-8s worst relative difference %.3g\n", tree ? "tree" : "grid", band > 0 ? ", blended" : "",
+                            shade ? "shade" : "evaluate", r.worst);
+                EXPECT_EQ(r.flagMismatches, 0u);
+                EXPECT_EQ(r.nonFinite, 0u);
+                EXPECT_LE(r.worst, kRelativeTolerance) << (tree ? "tree" : "grid") << (shade ? " shaded" : " evaluated");
+                const Agreement surfaces = compare(runOnGpu(*vk, asset, points, shade), runOnCpu(asset, points, shade));
+                EXPECT_LE(surfaces.worst, kRelativeTolerance) << "the surfaces beside the volume";
+                EXPECT_EQ(surfaces.flagMismatches, 0u);
+            }
+        }
+    // An asset without volume networks: every valid point reads 0, NRAD_POINT_EMPTY_VOXEL.
+    nrad::Asset plain = load(test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 4));
+    const Result r = runOnGpu(*vk, plain, points, false, nullptr, true);
+    size_t empty = 0;
+    for (size_t i = 0; i < r.flags.size(); ++i) {
+        empty += r.flags[i] == NRAD_POINT_EMPTY_VOXEL;
+        if (r.flags[i] == NRAD_POINT_EMPTY_VOXEL) {
+            EXPECT_EQ(r.rgb[3 * i], 0.0f);
+        }
+    }
+    EXPECT_GT(empty, points.count() * 9 / 10);
 }
 
 TEST(Gpu, Fp32AssetsAreRoundedToFp16) {
