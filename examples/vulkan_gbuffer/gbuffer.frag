@@ -1,12 +1,12 @@
 // G-buffer pass, fragment stage: what an engine's G-buffer holds, in four RGBA32F targets: position and
-// coverage, the shading normal on the viewer's side and roughness, base colour and metallic, emission towards
+// coverage (1, or 2 for an object that was not in the bake), the shading normal on the viewer's side and roughness, base colour and metallic, emission towards
 // the viewer and the specular factor. The normal rules are the baker's (makeInteraction): vertex normals on
 // the winding side, both normals flipped to the viewer's side, the geometric normal where the shading one
 // faces away.
 #version 450
 
 struct Triangle {
-    vec4 geometricNormal;  // xyz, from the winding order
+    vec4 geometricNormal;  // xyz, from the winding order; w 1: an object that was not in the bake (a moving one)
     vec4 baseColorMetallic;
     vec4 emissionFrontRoughness;  // emission seen from the front; w roughness
     vec4 emissionBackSpecular;  // emission seen from the back (double-sided emitters); w specular factor
@@ -40,7 +40,7 @@ void main() {
         ns = -ns;
     }
     if (dot(ns, wo) <= 0.0) ns = ng;
-    gPosition = vec4(worldPosition, 1.0);
+    gPosition = vec4(worldPosition, t.geometricNormal.w > 0.5 ? 2.0 : 1.0);  // w: coverage, 2 for a moving object
     gNormalRoughness = vec4(ns, t.emissionFrontRoughness.w);
     gBaseColorMetallic = t.baseColorMetallic;
     gEmissionSpecular = vec4(front ? t.emissionFrontRoughness.xyz : t.emissionBackSpecular.xyz, t.emissionBackSpecular.w);

@@ -4,6 +4,8 @@
 // the very G-buffer it rasterised) and prints the shading pass's GPU time against the CPU runtime's.
 //
 //   nrad_vulkan_example SCENE.gltf ASSET.nrad OUT.png|OUT.exr [--width W] [--height H] [--repeat N]
+//       [--insert OBJECT.gltf@x,y,z]...  (objects that were not in the bake, moved there: a moving object, shaded
+//       with the asset's volume query, nradShadeVolume; the asset must be baked with --volume-points)
 //
 // Exit status: 0 when the GPU image agrees with the CPU runtime within docs/runtime.md's tolerance, 1 when it
 // does not, 2 for bad arguments or input, 3 when no Vulkan device exists. The scene is read with the baker's
@@ -19,6 +21,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -382,12 +385,26 @@ void copyImageToBuffer(VkCommandBuffer cb, const Image& im, VulkanCompute::Buffe
 
 int run(int argc, char** argv) {
     if (argc < 4) {
-        std::fprintf(stderr, "usage: %s SCENE.gltf ASSET.nrad OUT.png|OUT.exr [--width W] [--height H] [--repeat N]\n", argv[0]);
+        std::fprintf(stderr, "usage: %s SCENE.gltf ASSET.nrad OUT.png|OUT.exr [--width W] [--height H] [--repeat N] "
+                             "[--insert OBJECT.gltf@x,y,z]...\n", argv[0]);
         return 2;
     }
     int width = 512, height = 0, repeat = 5;
+    std::vector<std::pair<std::string, glm::vec3>> inserts;
     for (int i = 4; i + 1 < argc; i += 2) {
         const std::string flag = argv[i];
+        if (flag == "--insert") {  // FILE@x,y,z
+            const std::string spec = argv[i + 1];
+            const size_t at = spec.rfind('@');
+            glm::vec3 o(0.0f);
+            char rest;
+            if (at == std::string::npos || std::sscanf(spec.c_str() + at + 1, "%f,%f,%f%c", &o.x, &o.y, &o.z, &rest) != 3) {
+                std::fprintf(stderr, "%s: --insert %s: expected FILE.gltf@x,y,z\n", argv[0], spec.c_str());
+                return 2;
+            }
+            inserts.push_back({spec.substr(0, at), o});
+            continue;
+        }
         const int value = std::atoi(argv[i + 1]);
         if (value <= 0 || value > 16384 || (flag != "--width" && flag != "--height" && flag != "--repeat")) {
             std::fprintf(stderr, "%s: bad option %s %s\n", argv[0], argv[i], argv[i + 1]);
@@ -401,6 +418,7 @@ int run(int argc, char** argv) {
     }
     nrad::Scene scene = nrad::loadGltf(argv[1]);
     const nrad::Camera camera = nrad::defaultCamera(scene);
+    for (const auto& [file, offset] : inserts) nrad::insertObject(scene, nrad::loadGltf(file), offset, file);
     if (height == 0) height = std::max(1, int(std::lround(width / (camera.aspectRatio > 0.0f ? camera.aspectRatio : 1.0f))));
     nrad::Asset asset;
     std::string message;
@@ -437,7 +455,8 @@ int run(int argc, char** argv) {
         const glm::vec3 ng = mesh.geometricNormal(t), base = glm::clamp(m.baseColor, 0.0f, 1.0f);
         const glm::vec3 front = nrad::emittedRadiance(scene, t, 1.0f / 3.0f, 1.0f / 3.0f, true);
         const glm::vec3 back = nrad::emittedRadiance(scene, t, 1.0f / 3.0f, 1.0f / 3.0f, false);
-        triangles.push_back({{ng.x, ng.y, ng.z, 0.0f},
+        // w: 1 for an inserted object's triangle (the G-buffer marks its pixels: position w = 2)
+        triangles.push_back({{ng.x, ng.y, ng.z, scene.insertedObject(t) >= 0 ? 1.0f : 0.0f},
                              {base.x, base.y, base.z, std::clamp(m.metallic, 0.0f, 1.0f)},
                              {front.x, front.y, front.z, std::clamp(m.roughness, 0.0f, 1.0f)},
                              {back.x, back.y, back.z, m.specular}});
@@ -541,10 +560,13 @@ int run(int argc, char** argv) {
         vk->download(readback[size_t(i)], g[i].data(), bytes);
     }
 
-    // 4. The CPU runtime on the same G-buffer: the image must agree (docs/runtime.md's tolerance).
+    // 4. The CPU runtime on the same G-buffer: the image must agree (docs/runtime.md's tolerance). The baked
+    // surfaces through nradShadeBatch, the inserted objects' pixels (position w 2) through nradShadeGBuffer's volume
+    // query.
     std::vector<float> p, n, d, rgb;
     std::vector<NradSurface> surfaces;
     std::vector<size_t> pixelOf;
+    std::vector<uint8_t> moving;
     for (size_t i = 0; i < pixels; ++i) {
         if (g[0][4 * i + 3] == 0.0f) continue;
         const glm::vec3 pos(g[0][4 * i], g[0][4 * i + 1], g[0][4 * i + 2]);
@@ -557,11 +579,34 @@ int run(int argc, char** argv) {
         surfaces.push_back({{g[2][4 * i], g[2][4 * i + 1], g[2][4 * i + 2]}, g[2][4 * i + 3], g[1][4 * i + 3], g[3][4 * i + 3],
                             {g[3][4 * i], g[3][4 * i + 1], g[3][4 * i + 2]}});
         pixelOf.push_back(i);
+        moving.push_back(g[0][4 * i + 3] > 1.5f);
     }
     rgb.resize(p.size());
     const auto cpu0 = std::chrono::steady_clock::now();
     asset.shadeBatch(surfaces.size(), p.data(), n.data(), d.data(), surfaces.data(), rgb.data());
     const double cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - cpu0).count();
+    size_t movingPixels = 0;
+    for (size_t e = 0; e < pixelOf.size(); ++e) {
+        if (!moving[e]) continue;
+        ++movingPixels;
+        NradGBuffer one;
+        std::memset(&one, 0, sizeof one);
+        one.structSize = sizeof(NradGBuffer);
+        one.flags = NRAD_GBUFFER_VOLUME | NRAD_GBUFFER_UNIT_VECTORS;
+        one.count = 1;
+        one.position = {&p[3 * e], 0, NRAD_FORMAT_F32};
+        one.normal = {&n[3 * e], 0, NRAD_FORMAT_F32};
+        one.direction = {&d[3 * e], 0, NRAD_FORMAT_F32};
+        one.surfaces = &surfaces[e];
+        one.output = &rgb[3 * e];
+        one.outputFormat = NRAD_FORMAT_F32;
+        one.outputChannels = 3;
+        if (NradStatus st = nradShadeGBuffer(asset.get(), &one, nullptr, 0); st != NRAD_OK) {
+            std::fprintf(stderr, "%s: %s: the volume query: %s (bake the asset with --volume-points)\n", argv[0], argv[2],
+                         nradStatusString(st));
+            return 2;
+        }
+    }
     float largest = 0.0f;
     for (float v : rgb) largest = std::max(largest, std::abs(v));
     double worst = 0.0;
@@ -582,7 +627,8 @@ int run(int argc, char** argv) {
     nrad::writeImage(argv[3], image);
 
     std::printf("device: %s\n", vk->deviceName().c_str());
-    std::printf("image: %d x %d, %zu shaded pixels, written to %s\n", width, height, pixelOf.size(), argv[3]);
+    std::printf("image: %d x %d, %zu shaded pixels (%zu of inserted objects, through the volume query), written to %s\n", width,
+                height, pixelOf.size(), movingPixels, argv[3]);
     std::printf("shading pass: %.3f ms on the GPU (timestamps; %.3f ms wall per pass, mean of %d); CPU runtime "
                 "nradShadeBatch on one thread: %.3f ms (%.1fx the GPU pass)\n",
                 gpuMs, wallMs, repeat, cpuMs, cpuMs / (gpuMs > 0.0 ? gpuMs : wallMs));

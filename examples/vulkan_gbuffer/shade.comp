@@ -1,4 +1,5 @@
 // The shading pass an engine adds: every covered G-buffer pixel shaded with the asset (runtime/shaders/nrad.glsl),
+// the baked surfaces by nradShade, moving objects (coverage 2) by nradShadeVolume,
 // written to an RGBA32F image; uncovered pixels get 0 (the engine draws its sky there).
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -32,6 +33,7 @@ void main() {
     vec3 wo = view.eye.w != 0.0 ? normalize(view.eye.xyz - p.xyz) : -view.eye.xyz;
     NradSurface s = NradSurface(bm.rgb, bm.a, nr.w, es.w, es.rgb);
     vec3 rgb;
-    nradShade(p.xyz, nr.xyz, wo, s, rgb);
+    if (p.w > 1.5) nradShadeVolume(p.xyz, nr.xyz, wo, s, rgb);  // a moving object: the light in the volume
+    else nradShade(p.xyz, nr.xyz, wo, s, rgb);
     imageStore(shaded, px, vec4(rgb, 1.0));
 }

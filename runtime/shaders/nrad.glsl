@@ -41,17 +41,22 @@ layout(std430, binding = NRAD_ASSET_BINDING) readonly buffer NradAssetBuffer { u
 #endif
 #endif
 
-// nrad.h's constants.
-const uint NRAD_POINT_OK = 0u;
-const uint NRAD_POINT_OUTSIDE_GRID = 1u;
-const uint NRAD_POINT_EMPTY_VOXEL = 2u;
-const uint NRAD_POINT_INVALID_INPUT = 4u;
-const uint NRAD_CONTENT_SCATTERED_RADIANCE = 1u;
-const uint NRAD_CONTENT_DEMODULATED = 2u;
-const uint NRAD_CONTENT_BLENDED = 4u;
-const uint NRAD_CONTENT_TREE = 8u;
-const int NRAD_GPU_MAX_HIDDEN_WIDTH = 32;
-const int NRAD_MAX_SUPPORTS = 8;
+// nrad.h's constants. (The file is written in the subset GLSL and HLSL share, with GLSL's names: nrad.hlsl maps them,
+// declares the buffer and includes this file. So no array constructors, no vector splats, no bare global consts,
+// and no function with out parameters, or any costly one, inside ?: (HLSL evaluates both sides).)
+#ifndef NRAD_CONST
+#define NRAD_CONST const
+#endif
+NRAD_CONST uint NRAD_POINT_OK = 0u;
+NRAD_CONST uint NRAD_POINT_OUTSIDE_GRID = 1u;
+NRAD_CONST uint NRAD_POINT_EMPTY_VOXEL = 2u;
+NRAD_CONST uint NRAD_POINT_INVALID_INPUT = 4u;
+NRAD_CONST uint NRAD_CONTENT_SCATTERED_RADIANCE = 1u;
+NRAD_CONST uint NRAD_CONTENT_DEMODULATED = 2u;
+NRAD_CONST uint NRAD_CONTENT_BLENDED = 4u;
+NRAD_CONST uint NRAD_CONTENT_TREE = 8u;
+NRAD_CONST int NRAD_GPU_MAX_HIDDEN_WIDTH = 32;
+NRAD_CONST int NRAD_MAX_SUPPORTS = 8;
 
 // The header's word offsets, shared with the runtime's packer: nrad_gpu_layout.h, installed beside this file
 // (pasted before it where a toolchain has no includes, which its guard then skips).
@@ -125,8 +130,13 @@ int nradGridSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
     for (int z = 0; z < count[2]; ++z)
         for (int y = 0; y < count[1]; ++y)
             for (int x = 0; x < count[0]; ++x) {
-                int c[3] = int[3](lowCoord[0] + x, lowCoord[1] + y, lowCoord[2] + z);
-                int sel[3] = int[3](x, y, z);
+                int c[3], sel[3];
+                c[0] = lowCoord[0] + x;
+                c[1] = lowCoord[1] + y;
+                c[2] = lowCoord[2] + z;
+                sel[0] = x;
+                sel[1] = y;
+                sel[2] = z;
                 float w = 1.0;
                 vec3 local;
                 for (int k = 0; k < 3; ++k) {
@@ -161,8 +171,8 @@ int nradTreeSupports(vec3 p, out int cells[NRAD_MAX_SUPPORTS], out float weights
     vec3 stackWeight[NRAD_MAX_SUPPORTS];
     int top = 0, n = 0;
     uint node = 0u;
-    vec3 w = vec3(1.0);
-    bvec3 blended = bvec3(false);
+    vec3 w = vec3(1.0, 1.0, 1.0);
+    bvec3 blended = bvec3(false, false, false);
     for (;;) {
         for (;;) {
             uint word = nradWords[nodes + 2u * node];
@@ -243,7 +253,12 @@ float nradExpMinusOne(float v) {
 // activations in registers (the general loop below indexes arrays with run-time bounds, which GPUs put in
 // local memory). The same sums in the same order as the general loop.
 vec3 nradForward993(uint w, vec3 local, vec3 normal, vec3 direction) {
-    float x[9] = float[9](local.x, local.y, local.z, normal.x, normal.y, normal.z, direction.x, direction.y, direction.z);
+    float x[9];
+    for (int i = 0; i < 3; ++i) {
+        x[i] = local[i];
+        x[3 + i] = normal[i];
+        x[6 + i] = direction[i];
+    }
     float h[9];
     for (int o = 0; o < 9; ++o) {
         float s = nradWeight(w + 81u + uint(o));
@@ -291,7 +306,9 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
 vec3 nradNetwork(uint scales, uint weights, int net, vec3 local, vec3 normal, vec3 direction) {
     uint w = 2u * weights + uint(net) * nradWords[NRAD_GPU_WORD_PARAMS];  // half index of the network's first parameter
     bool default993 = nradWords[NRAD_GPU_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_GPU_WORD_HIDDEN_WIDTHS] == 9u;
-    vec3 y = default993 ? nradForward993(w, local, normal, direction) : nradForward(w, local, normal, direction);
+    vec3 y;
+    if (default993) y = nradForward993(w, local, normal, direction);
+    else y = nradForward(w, local, normal, direction);
     bool exponential = nradWords[NRAD_GPU_WORD_OUTPUT_TRANSFORM] == 1u;
     float scale = nradFloat(scales + uint(net));
     vec3 rgb;
@@ -313,8 +330,9 @@ uint nradEvaluateNetworks(uint table, uint scales, uint weightWords, vec3 positi
     int cells[NRAD_MAX_SUPPORTS];
     float weights[NRAD_MAX_SUPPORTS];
     vec3 locals[NRAD_MAX_SUPPORTS];
-    int count = nradWords[NRAD_GPU_WORD_TREE_NODES] == 0u ? nradGridSupports(position, cells, weights, locals)
-                                                      : nradTreeSupports(position, cells, weights, locals);
+    int count;  // (if, not ?: : HLSL evaluates both sides of a conditional, and both would write the supports)
+    if (nradWords[NRAD_GPU_WORD_TREE_NODES] == 0u) count = nradGridSupports(position, cells, weights, locals);
+    else count = nradTreeSupports(position, cells, weights, locals);
     if (count == 0) return NRAD_POINT_OUTSIDE_GRID;
     // keepOccupied: drop supports without a network (or weight 0), renormalise the rest in order.
     int nets[NRAD_MAX_SUPPORTS];
@@ -383,8 +401,8 @@ uint nradShade(vec3 position, vec3 normal, vec3 direction, NradSurface surface, 
     uint flags = nradEvaluate(position, normal, direction, stored);
     uint content = nradContentFlags();
     float cosNV = dot(normal, direction);
-    vec3 r = (content & NRAD_CONTENT_DEMODULATED) != 0u ? nradReflectance(surface, nradFinite(cosNV) ? cosNV : 0.0) : vec3(1.0);
-    vec3 e = vec3(0.0);
+    vec3 r = (content & NRAD_CONTENT_DEMODULATED) != 0u ? nradReflectance(surface, nradFinite(cosNV) ? cosNV : 0.0) : vec3(1.0, 1.0, 1.0);
+    vec3 e = vec3(0.0, 0.0, 0.0);
     if ((content & NRAD_CONTENT_SCATTERED_RADIANCE) != 0u)
         for (int c = 0; c < 3; ++c) e[c] = nradFinite(surface.emission[c]) ? surface.emission[c] : 0.0;
     radiance = r * stored + e;

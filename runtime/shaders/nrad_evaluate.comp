@@ -46,9 +46,12 @@ void main() {
         surface.roughness = surfaces[s + 4u];
         surface.specular = surfaces[s + 5u];
         surface.emission = vec3(surfaces[s + 6u], surfaces[s + 7u], surfaces[s + 8u]);
-        f = batch.mode == 3u ? nradShadeVolume(p, n, d, surface, rgb) : nradShade(p, n, d, surface, rgb);
+        if (batch.mode == 3u) f = nradShadeVolume(p, n, d, surface, rgb);
+        else f = nradShade(p, n, d, surface, rgb);
+    } else if (batch.mode == 2u) {
+        f = nradEvaluateVolume(p, n, rgb);
     } else {
-        f = batch.mode == 2u ? nradEvaluateVolume(p, n, rgb) : nradEvaluate(p, n, d, rgb);
+        f = nradEvaluate(p, n, d, rgb);
     }
     radiance[3u * i] = rgb.x;
     radiance[3u * i + 1u] = rgb.y;

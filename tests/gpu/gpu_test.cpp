@@ -61,14 +61,15 @@ struct Result {
 };
 
 // Evaluates (shade = false) or shades the points with the compute shader (volume: the light in the volume).
+// spv: the compute shader, nrad_evaluate.comp (GLSL) or nrad_evaluate.hlsl (HLSL) compiled.
 Result runOnGpu(gpu::VulkanCompute& vk, const nrad::Asset& asset, const GBuffer& g, bool shade, double* ms = nullptr,
-                bool volume = false) {
+                bool volume = false, const char* spv = NRAD_EVALUATE_SPV) {
     size_t bytes = 0;
     EXPECT_EQ(nradGetGpuBufferSize(asset.get(), &bytes), NRAD_OK);
     std::vector<uint32_t> packed(bytes / 4);
     EXPECT_EQ(nradPackGpuBuffer(asset.get(), packed.data(), bytes), NRAD_OK);
     const size_t n = g.count();
-    gpu::VulkanCompute::Pipeline* p = vk.pipeline(NRAD_EVALUATE_SPV, 7, 8);
+    gpu::VulkanCompute::Pipeline* p = vk.pipeline(spv, 7, 8);
     std::vector<gpu::VulkanCompute::Buffer*> b = {vk.buffer(bytes), vk.buffer(12 * n), vk.buffer(12 * n), vk.buffer(12 * n),
                                                   vk.buffer(sizeof(NradSurface) * n), vk.buffer(12 * n), vk.buffer(4 * n)};
     vk.upload(b[0], packed.data(), bytes);
@@ -282,6 +283,64 @@ TEST(Gpu, VolumeQueryMatchesTheCpuRuntime) {
     EXPECT_GT(empty, points.count() * 9 / 10);
 }
 
+// HLSL (issue 42): nrad.hlsl, nrad.glsl's source through glslang's HLSL front end, in nrad_evaluate.hlsl: every entry
+// point (evaluate, shade, the volume's two) against the CPU runtime on grid and tree assets, blended or not, other
+// topologies and extreme values, within the GLSL's tolerance.
+TEST(Gpu, HlslMatchesTheCpuRuntime) {
+    NRAD_NEED_VULKAN();
+    const GBuffer points = randomPoints(20000, 17);
+    struct Case {
+        const char* name;
+        std::vector<uint32_t> hidden;
+        format::OutputTransform transform;
+        float band;
+        bool tree;
+        bool extreme;
+    };
+    const std::vector<Case> cases = {
+        {"grid, exponential", {9}, format::OutputTransform::Exponential, 0.0f, false, false},
+        {"grid, linear, 16-8 hidden, blended", {16, 8}, format::OutputTransform::ClampedLinear, 0.0625f, false, false},
+        {"tree, blended", {9}, format::OutputTransform::Exponential, 0.125f, true, false},
+        {"extreme weights and scales, exp", {9}, format::OutputTransform::Exponential, 0.125f, false, true},
+    };
+    for (const Case& c : cases) {
+        format::Asset a = test::randomAsset(c.hidden, format::WeightEncoding::Float16, c.transform, 11, glm::uvec3(4, 3, 5), c.band);
+        if (c.tree) {
+            for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
+            a.header.flags |= format::kFlagTree;
+            a.tree = test::randomTree(a.grid.dims, 90, 8);
+            uint32_t leaves = 0;
+            ASSERT_TRUE(format::validateTree(a.grid.dims, a.tree, leaves));
+            a.voxels.clear();
+            for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
+            a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+        }
+        std::mt19937 rng(23);
+        std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+        if (c.tree)
+            for (float& w : a.weights) w = format::halfToFloat(format::floatToHalf(u(rng)));
+        if (c.extreme) {
+            for (size_t i = 0; i < a.weights.size(); ++i) a.weights[i] = i % 3 == 0 ? -65504.0f : 65504.0f;
+            for (format::VoxelEntry& v : a.voxels) v.scale = 3.0e38f;
+        }
+        for (uint32_t cell = 1; cell < (c.tree ? 90u : 60u); cell += 4) a.volumeVoxels.push_back({cell, 0.3f});
+        a.volumeWeights.resize(a.volumeVoxels.size() * a.topology.parameterCount());
+        for (float& w : a.volumeWeights) w = format::halfToFloat(format::floatToHalf(u(rng)));
+        a.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;
+        nrad::Asset asset = load(a);
+        for (bool volume : {false, true})
+            for (bool shade : {false, true}) {
+                const Result cpu = volume ? runVolumeOnCpu(asset, points, shade) : runOnCpu(asset, points, shade);
+                const Agreement r = compare(runOnGpu(*vk, asset, points, shade, nullptr, volume, NRAD_EVALUATE_HLSL_SPV), cpu);
+                std::printf("HLSL %-36s %-6s %-8s worst relative difference %.3g\n", c.name, volume ? "volume" : "", shade ? "shade" : "evaluate",
+                            r.worst);
+                EXPECT_EQ(r.flagMismatches, 0u) << c.name;
+                EXPECT_EQ(r.nonFinite, 0u) << c.name;
+                EXPECT_LE(r.worst, kRelativeTolerance) << c.name << (volume ? " volume" : "") << (shade ? " shaded" : " evaluated");
+            }
+    }
+}
+
 TEST(Gpu, Fp32AssetsAreRoundedToFp16) {
     NRAD_NEED_VULKAN();
     const GBuffer points = randomPoints(5000, 8);
@@ -341,9 +400,9 @@ TEST(Gpu, BundledScenesGBuffersMatchTheCpuRuntime) {
 }
 
 // The example engine integration (examples/vulkan_gbuffer): its rasterised, GPU-shaded image of the Cornell
-// box agrees with the CPU runtime on its own G-buffer (the example's exit status) and with `nrad render
-// --asset` of the same view (ray-cast first hits, 16 jittered samples per pixel): the same image up to the
-// anti-aliasing of edges.
+// box, with a sphere placed after the bake (shaded through the volume query, nradShadeVolume), agrees with the CPU
+// runtime on its own G-buffer (the example's exit status) and with `nrad render --asset --insert` of the same view
+// (ray-cast first hits, 16 jittered samples per pixel): the same image up to the anti-aliasing of edges.
 int shell(const std::string& command, std::string& output) {
     FILE* pipe = popen((command + " 2>&1").c_str(), "r");
     char buf[4096];
@@ -361,18 +420,25 @@ TEST(Gpu, ExampleEngineImageMatchesTheCpuRender) {
     s.samples.points = 20000;
     s.samples.paths = 8;
     s.train.epochs = 100;
+    s.volume.enabled = true;
+    s.volume.pointsPerCell = 300;
+    s.volume.paths = 8;
+    const std::string sphere = test::sourcePath("scenes/objects/sphere.gltf") + "@0.40,0.10,0.12";
     const std::string dir = test::temporaryDirectory(), assetPath = dir + "/cb.nrad";
     const std::vector<uint8_t> bytes = format::encode(bakeScene(scene, s).asset);
     std::ofstream(assetPath, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
     std::string out;
     ASSERT_EQ(shell("'" + std::string(NRAD_VULKAN_EXAMPLE) + "' '" + scenePath + "' '" + assetPath + "' '" + dir +
-                        "/gpu.exr' --width 192 --height 192 --repeat 1",
+                        "/gpu.exr' --width 192 --height 192 --repeat 1 --insert '" + sphere + "'",
                     out),
               0)
         << out;
     std::printf("%s", out.c_str());
+    const size_t at = out.find(" of inserted objects");
+    ASSERT_NE(at, std::string::npos) << out;
+    EXPECT_GT(std::atoi(out.c_str() + out.rfind('(', at) + 1), 1000) << "the sphere's pixels";
     ASSERT_EQ(shell("'" + test::nradExecutable() + "' render '" + scenePath + "' --asset '" + assetPath + "' -o '" + dir +
-                        "/cpu.exr' --width 192 --height 192 --spp 16",
+                        "/cpu.exr' --width 192 --height 192 --spp 16 --insert '" + sphere + "'",
                     out),
               0)
         << out;
