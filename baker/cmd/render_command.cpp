@@ -65,6 +65,10 @@ int writeOutputs(const RenderOptions& o, const Image& image) {
 // Primary visibility by Embree, radiance from the asset through the public runtime API.
 int renderNeural(const RenderOptions& o, const Scene& scene, const Accel& accel, const Camera& camera,
                  const RenderSettings& settings, const nrad::Asset& asset) {
+    NradAssetInfo info;
+    if (!scene.insertedObjects.empty() && nradGetAssetInfo(asset.get(), &info) == NRAD_OK && info.volumeNetworks == 0)
+        std::fprintf(stderr, "nrad render: %s has no volume networks (bake with --volume-points): the inserted objects are shaded by "
+                             "the surfaces' networks, an extrapolation nobody trained\n", o.asset.c_str());
     ProgressBar bar("render", !o.quiet);
     Image image;
     NeuralRenderStats stats;
@@ -116,9 +120,10 @@ int runRender(const RenderOptions& o, CLI::App* cmd) {
                                            scene, metadata)) return code;
     if (!o.asset.empty())
         if (int code = checkAssetSceneForCommand("render", o.asset, metadata, scene, o.force, o.quiet)) return code;
-    if (int code = insertObjectsForCommand("render", o.inserts, o.importLimits, o.quiet, scene)) return code;
     Camera camera;
     if (int code = chooseCameraForCommand("render", scene, o.camera, o.view, o.quiet, camera)) return code;
+    // After the camera: a scene without one is framed as baked, not around the objects placed into it.
+    if (int code = insertObjectsForCommand("render", o.inserts, o.importLimits, o.quiet, scene)) return code;
     RenderSettings settings;
     settings.spp = o.spp;
     settings.maxDepth = o.maxDepth;

@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -58,14 +59,19 @@ int insertObjectsForCommand(const char* command, const std::vector<std::string>&
         std::string path = spec;
         glm::vec3 offset(0.0f);
         if (const size_t at = spec.rfind('@'); at != std::string::npos && parseVec3(spec.substr(at + 1), offset)) path = spec.substr(0, at);
-        else if (at != std::string::npos && !std::filesystem::exists(spec)) {
+        else if (std::error_code ec; at != std::string::npos && !std::filesystem::exists(spec, ec)) {
             std::fprintf(stderr, "nrad %s: --insert %s: the position after @ is not x,y,z (three finite numbers)\n", command, spec.c_str());
             return kExitUsage;
+        }
+        if (scene.mesh.triangleCount() >= limits.maxTriangles) {
+            std::fprintf(stderr, "nrad %s: --insert %s: the scene already has %zu triangles, the most --max-triangles allows\n", command,
+                         spec.c_str(), scene.mesh.triangleCount());
+            return kExitBadInput;
         }
         Scene object;
         try {
             ImportLimits left = limits;
-            left.maxTriangles = limits.maxTriangles > scene.mesh.triangleCount() ? limits.maxTriangles - scene.mesh.triangleCount() : 1;
+            left.maxTriangles = limits.maxTriangles - scene.mesh.triangleCount();  // what the objects may add
             object = loadGltf(path, left);
             insertObject(scene, object, offset, spec);
         } catch (const SceneError& e) {

@@ -175,7 +175,6 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     if (int code = applyLightingForCommand("validate", o.lighting, lightingFlagsGiven(cmd), cmd->count("--environment") > 0, o.quiet,
                                            scene, metadata)) return code;
     if (int code = checkAssetSceneForCommand("validate", o.asset, metadata, scene, o.force, o.quiet)) return code;
-    if (int code = insertObjectsForCommand("validate", o.inserts, o.importLimits, o.quiet, scene)) return code;
     if (!scene.hasLight()) {
         // Every image would be black and every ratio 0 / 0.
         std::fprintf(stderr, "nrad validate: %s: nothing lights the scene (no emitter of positive power, no punctual light, "
@@ -184,6 +183,8 @@ int runValidate(const ValidateOptions& o, CLI::App* cmd) {
     }
     ValidateSettings s;
     if (int code = chooseCameraForCommand("validate", scene, o.camera, o.view, o.quiet, s.camera)) return code;
+    // After the camera: a scene without one is framed as baked, not around the objects placed into it.
+    if (int code = insertObjectsForCommand("validate", o.inserts, o.importLimits, o.quiet, scene)) return code;
     const float aspect = s.camera.aspectRatio > 0.0f ? s.camera.aspectRatio : 1.0f;
     if (int code = imageSizeForCommand("validate", o.width, o.height, aspect, 512, s.width, s.height)) return code;
     if (int code = checkMemoryForCommand("validate", uint64_t(s.width) * uint64_t(s.height) * kValidateBytesPerPixel,

@@ -35,6 +35,7 @@ void insertObject(Scene& scene, const Scene& object, const glm::vec3& offset, co
     TriangleMesh& m = scene.mesh;
     const TriangleMesh& o = object.mesh;
     const size_t vertices = m.positions.size(), added = o.positions.size();
+    if (vertices + added >= size_t(UINT32_MAX)) throw SceneError(name + ": the scene with the object would have more than 2^32 - 1 vertices");
     const uint32_t materialBase = uint32_t(scene.materials.size());
     const int textureBase = int(scene.textures.size());
     scene.insertedObjects.push_back(m.triangleCount());
@@ -62,6 +63,28 @@ void insertObject(Scene& scene, const Scene& object, const glm::vec3& offset, co
     }
     scene.textures.insert(scene.textures.end(), object.textures.begin(), object.textures.end());
     scene.updateBounds();
+}
+
+Scene withoutInsertedObjects(const Scene& scene) {
+    Scene bare = scene;
+    if (scene.insertedObjects.empty()) return bare;
+    const size_t keep = scene.insertedObjects.front();
+    uint32_t firstVertex = UINT32_MAX;  // the inserted vertices follow all of the scene's own
+    for (size_t t = keep; t < scene.mesh.triangleCount(); ++t)
+        for (int k = 0; k < 3; ++k) firstVertex = std::min(firstVertex, scene.mesh.triangles[t][k]);
+    TriangleMesh& m = bare.mesh;
+    m.triangles.resize(keep);
+    m.materialIds.resize(keep);
+    for (auto* v : {&m.positions, &m.normals})
+        if (v->size() > firstVertex) v->resize(firstVertex);
+    for (auto* v : {&m.uv0, &m.uv1})
+        if (v->size() > firstVertex) v->resize(firstVertex);
+    for (auto* v : {&m.colors, &m.tangents})
+        if (v->size() > firstVertex) v->resize(firstVertex);
+    bare.insertedObjects.clear();
+    bare.insertedNames.clear();
+    bare.updateBounds();
+    return bare;
 }
 
 void Scene::updateBounds() {

@@ -175,8 +175,13 @@ struct Scene {
 
 // Places `object` (another imported scene) into `scene`, moved by `offset`: its triangles are appended (with its
 // materials and textures), recorded in insertedObjects. Its punctual lights and cameras are not taken (an object
-// placed after the bake lights nothing the asset holds). Throws SceneError for an object without triangles.
+// placed after the bake lights nothing the asset holds). Throws SceneError for an object without triangles, or one
+// whose vertices would take the scene past 2^32 - 1.
 void insertObject(Scene& scene, const Scene& object, const glm::vec3& offset, const std::string& name);
+
+// The scene as it was before insertObject: the inserted objects' triangles and vertices dropped (their materials
+// and textures stay, unused).
+Scene withoutInsertedObjects(const Scene& scene);
 
 // Builds a camera that frames the whole scene from +Z looking down -Z (used when the scene has none).
 Camera frameBounds(const Bounds3& bounds, float yfov = 0.6911f);

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 
@@ -139,7 +140,7 @@ SeamFigure seamFigure(const FirstHits& h, const eval::Partition& partition, Nrad
     }
     std::vector<float> p, n, d;
     for (size_t i = 0; i < h.voxel.size(); ++i) {
-        if (h.voxel[i] < 0 || h.emitter[i]) continue;
+        if (h.voxel[i] < 0 || h.emitter[i] || (!h.inserted.empty() && h.inserted[i] >= 0)) continue;  // not the objects placed after the bake
         format::TreeBox box;
         if (boxes.empty()) {
             const uint64_t v = uint64_t(h.voxel[i]);
@@ -381,6 +382,11 @@ struct ValidationRun {
     const LightSampler& lights;
     const PathTracer& tracer;
     RenderSettings rs;  // the image size and path length every render shares
+    // The scene as baked (without the objects --insert placed; the same as `scene` without any): what the
+    // baselines are fitted in and the exact volume light is traced in, as the asset was baked.
+    const Scene& baked;
+    const Accel& bakedAccel;
+    const LightSampler& bakedLights;
 };
 
 // The result's description of the run, and the image size (height from the camera's aspect ratio if unset).
@@ -630,8 +636,8 @@ ShProbeGrid fitBaseline(ValidationRun& v, const NradAssetInfo& info, const Sampl
     const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
     const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
     const uint64_t probeCount = uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z;
-    VoxelGrid grid(v.scene.bounds, dims);
-    SurfacePieces pieces(v.scene.mesh, grid);
+    VoxelGrid grid(v.baked.bounds, dims);
+    SurfacePieces pieces(v.baked.mesh, grid);
     SampleStats sst;
     v.say("baseline: training samples (" + std::to_string(ss.points) + " points x " + std::to_string(ss.paths) + " paths, for " +
           std::to_string(probeCount) + " probes)");
@@ -649,11 +655,11 @@ ShProbeGrid fitBaseline(ValidationRun& v, const NradAssetInfo& info, const Sampl
         };
     };
     // Trained like the asset's networks: without the direct light of lights the engine draws.
-    PathTracer baselineTracer(v.scene, v.accel, v.lights);
+    PathTracer baselineTracer(v.baked, v.bakedAccel, v.bakedLights);
     baselineTracer.setExcludeEngineDrawnDirect(true);
     baselineTracer.setRouletteThreshold(kTrainingRouletteThreshold);
     std::vector<TrainingSample> samples =
-        generateTrainingSamples(v.scene, baselineTracer, grid, pieces, ss, sst, std::function<void(double)>(tenths("sampling")));
+        generateTrainingSamples(v.baked, baselineTracer, grid, pieces, ss, sst, std::function<void(double)>(tenths("sampling")));
     const double samplingSeconds = since(t0);
     // The probes follow the asset's contract: demodulated like its networks where it is (as engines'
     // probes store lighting and multiply by the albedo), so both are shaded alike.
@@ -718,7 +724,7 @@ ShIrradianceGrid fitIrradianceBaseline(ValidationRun& v, const NradAssetInfo& in
     const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
     const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
     r.irradianceProbes = irradianceDimsForBudget(lower, upper, r.volumeBytes > 0 ? r.volumeBytes : r.neural.bytes);
-    PathTracer tracer(v.scene, v.accel, v.lights);
+    PathTracer tracer(v.baked, v.bakedAccel, v.bakedLights);
     tracer.setExcludeEngineDrawnDirect(true);
     tracer.setRouletteThreshold(kTrainingRouletteThreshold);
     ShIrradianceFit fit;
@@ -756,15 +762,7 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
 // The exact volume quantity on the inserted objects (InsertedFigure): D(x, n) traced in the scene without them at
 // the centres of the pixels where `use` is set, shaded as the asset's query is; the other pixels 0.
 Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32_t paths) {
-    Scene bare = v.scene;  // the scene as baked: the inserted triangles are the last ones
-    const size_t keep = v.scene.insertedObjects.front();
-    bare.mesh.triangles.resize(keep);
-    bare.mesh.materialIds.resize(keep);
-    bare.insertedObjects.clear();
-    bare.updateBounds();
-    Accel accel(bare);
-    LightSampler lights(bare);
-    PathTracer tracer(bare, accel, lights);
+    PathTracer tracer(v.baked, v.bakedAccel, v.bakedLights);
     tracer.setRouletteThreshold(kTrainingRouletteThreshold);
     const int w = v.r.width, h = v.r.height;
     Image out(w, h);
@@ -785,7 +783,7 @@ Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32
                 const SurfaceInteraction receiver = receiverAt(si.p, si.ns);
                 batch.clear();
                 for (uint32_t j = 0; j < paths; ++j) batch.push_back({&receiver, uint32_t(i * 0x9e3779b1u) ^ 0x6578616du, j});
-                tracer.estimate(batch.data(), batch.size(), 0, nullptr, 1, counters, estimates.data());
+                tracer.estimate(batch.data(), batch.size(), v.rs.maxDepth, nullptr, 1, counters, estimates.data());
                 glm::dvec3 sum(0.0);
                 uint32_t n = 0;
                 for (const glm::vec3& L : estimates)
@@ -913,7 +911,17 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     Accel accel(scene);
     LightSampler lights(scene);
     PathTracer tracer(scene, accel, lights);
-    ValidationRun v{scene, settings, Say{log}, r, accel, lights, tracer, RenderSettings()};
+    // The scene as baked, where objects were placed after the bake.
+    std::unique_ptr<const Scene> bare;
+    std::unique_ptr<const Accel> bareAccel;
+    std::unique_ptr<const LightSampler> bareLights;
+    if (!scene.insertedObjects.empty()) {
+        bare = std::make_unique<const Scene>(withoutInsertedObjects(scene));
+        bareAccel = std::make_unique<const Accel>(*bare);
+        bareLights = std::make_unique<const LightSampler>(*bare);
+    }
+    ValidationRun v{scene, settings, Say{log}, r, accel, lights, tracer, RenderSettings(), bare ? *bare : scene,
+                    bareAccel ? *bareAccel : accel, bareLights ? *bareLights : lights};
     v.rs.width = r.width;
     v.rs.height = r.height;
     v.rs.maxDepth = settings.maxDepth;

@@ -519,6 +519,47 @@ TEST(CliValidate, BadInputsExitWithTheirCodes) {
 namespace nrad {
 namespace {
 
+// --insert (issue 42): objects that were not in the bake, refused with their exit codes when they cannot be read,
+// measured by validate against the SH irradiance probes and the exact volume light when they can.
+TEST(CliInsert, BadObjectsAreRefusedAndValidateMeasuresTheInsertedOnes) {
+    const std::string dir = test::temporaryDirectory();
+    const std::string scene = "'" + test::sourcePath("scenes/cornell-box/cornell-box.gltf") + "'";
+    const std::string sphere = test::sourcePath("scenes/objects/sphere.gltf");
+    ASSERT_EQ(run("bake " + scene + " -o '" + dir + "/a.nrad' --points 20000 --paths 4 --epochs 30 --volume-points 200 "
+                  "--volume-paths 8 -q").exitCode, 0);
+    RunResult r = run("render " + scene + " -o '" + dir + "/x.png' --spp 1 --width 8 --insert '" + dir + "/none.gltf@0,0,0' -q");
+    EXPECT_EQ(r.exitCode, 3) << r.output;
+    EXPECT_NE(r.output.find("nrad render: --insert: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("none.gltf"), std::string::npos) << r.output;
+    r = run("render " + scene + " -o '" + dir + "/x.png' --spp 1 --width 8 --insert '" + sphere + "@1,2' -q");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find("the position after @ is not x,y,z"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/x.png"));
+    r = run("validate " + scene + " '" + dir + "/a.nrad' -o '" + dir + "/r' --width 64 --reference-spp 64 --curve-max-spp 4 "
+            "--no-cache --insert '" + sphere + "@0.40,0.10,0.12' --insert '" + sphere + "@0.15,0.30,0.15'");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("inserted " + sphere + "@0.40,0.10,0.12: "), std::string::npos) << r.output;
+    std::ifstream in(dir + "/r/report.json");
+    const nlohmann::json j = nlohmann::json::parse(in)["inserted"];
+    EXPECT_EQ(j["through"], "volume query");
+    EXPECT_EQ(j["volume_bytes"].get<size_t>(), 27u * 120u * 2u);
+    ASSERT_EQ(j["objects"].size(), 3u);  // the two, then both together
+    EXPECT_EQ(j["objects"][2]["name"], "all inserted objects");
+    EXPECT_EQ(j["objects"][2]["pixels"].get<size_t>(), j["objects"][0]["pixels"].get<size_t>() + j["objects"][1]["pixels"].get<size_t>());
+    EXPECT_GT(j["objects"][0]["pixels"].get<size_t>(), 50u);
+    for (const nlohmann::json& o : j["objects"]) {
+        EXPECT_GT(o["neural_relmse"].get<double>(), 0.0);
+        EXPECT_LT(o["neural_relmse"].get<double>(), 1.0);
+        EXPECT_GT(o["baseline_relmse"].get<double>(), 0.0);
+        EXPECT_GT(o["exact_volume_light"]["pixels"].get<size_t>(), 0u);
+        EXPECT_GT(o["neural_mean_ratio"].get<double>(), 0.5);
+        EXPECT_LT(o["neural_mean_ratio"].get<double>(), 2.0);
+    }
+    const size_t probes = j["baseline"]["probes"][0].get<size_t>() * j["baseline"]["probes"][1].get<size_t>() *
+                          j["baseline"]["probes"][2].get<size_t>();
+    EXPECT_LE(probes * 54 + (probes + 7) / 8, 27u * 120u * 2u) << "the probes fit in the volume's bytes";
+}
+
 TEST(CliRender, LearnedLightSelectionWritesTheImageAndTheChosenLights) {
     std::string dir = test::temporaryDirectory();
     std::string scene = "'" + test::sourcePath("scenes/split-rooms/split-rooms.gltf") + "'";
