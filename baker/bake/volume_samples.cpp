@@ -8,11 +8,10 @@
 #include <tbb/parallel_for.h>
 
 #include "baker/nn/random.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 namespace {
-
-constexpr float kPi = 3.14159265358979f;
 
 glm::vec3 uniformDirection(SplitMix64& r) {
     const float z = 1.0f - 2.0f * r.uniform(), phi = 2.0f * kPi * r.uniform();

@@ -13,13 +13,12 @@
 
 #include "baker/bake/volume_samples.h"
 #include "baker/nn/random.h"
+#include "baker/util/maths.h"
 #include "baker/validate/sh_probes.h"
 
 namespace nrad {
 
 namespace {
-
-constexpr float kPi = 3.14159265358979f;
 
 // n directions spread evenly over the sphere (a Fibonacci lattice), turned by the rotation `r`.
 void fibonacciSphere(uint32_t n, const glm::mat3& r, std::vector<glm::vec3>& out) {

@@ -24,6 +24,7 @@
 #include "baker/lights/light_sampler.h"
 #include "baker/render/neural_render.h"
 #include "baker/util/hash.h"
+#include "baker/util/maths.h"
 
 namespace nrad {
 
@@ -803,13 +804,6 @@ void measureInserted(ValidationRun& v, const FirstHits& hits) {
     ValidationResult& r = v.r;
     const size_t objects = v.scene.insertedObjects.size();
     const int w = hits.width, h = hits.height;
-    struct Sums {
-        size_t pixels = 0;
-        double neural = 0.0, baseline = 0.0;
-        double refLum = 0.0, neuralLum = 0.0, baselineLum = 0.0;
-    };
-    std::vector<Sums> sums(objects + 1);
-    auto lum = [](const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; };
     std::vector<uint8_t> interior(size_t(w) * size_t(h), 0), exactAt(interior.size(), 0);
     size_t exactCount = 0;
     for (int y = 1; y + 1 < h; ++y)
@@ -827,74 +821,59 @@ void measureInserted(ValidationRun& v, const FirstHits& hits) {
     // The exact quantity's paths: 1024 per pixel, fewer where the objects cover many (4 M paths in all at most).
     r.exactPaths = uint32_t(std::clamp<size_t>(exactCount ? (size_t(1) << 22) / exactCount : 1024, 64, 1024));
     const Image exact = exactVolumeImage(v, exactAt, r.exactPaths);
-    struct ExactSums {
-        size_t pixels = 0;
-        double err = 0.0, lum = 0.0, refLum = 0.0, neural = 0.0, baseline = 0.0;
+    // Per object, then all together: sums of relMSE and luminance over the interior pixels (against the reference)
+    // and over those of them with the exact light (against the reference, and the asset and probes against it).
+    struct Sums {
+        size_t pixels = 0, exactPixels = 0;
+        double neural = 0.0, baseline = 0.0, refLum = 0.0, neuralLum = 0.0, baselineLum = 0.0;
+        double exact = 0.0, exactLum = 0.0, exactRefLum = 0.0, neuralVsExact = 0.0, baselineVsExact = 0.0;
     };
-    std::vector<ExactSums> exactSums(objects + 1);
-    for (int y = 1; y + 1 < h; ++y)
-        for (int x = 1; x + 1 < w; ++x) {
-            const size_t i = size_t(y) * size_t(w) + size_t(x);
-            if (!interior[i]) continue;
-            const int o = hits.inserted[i];
-            const glm::vec3 ref = r.reference.pixels[i], a = r.neural.image.pixels[i];
-            if (exactAt[i])
-                for (ExactSums* s : {&exactSums[size_t(o)], &exactSums[objects]}) {
-                    ++s->pixels;
-                    for (int c = 0; c < 3; ++c)
-                        s->err += (double(exact.pixels[i][c]) - ref[c]) * (double(exact.pixels[i][c]) - ref[c]) / (double(ref[c]) * ref[c] + 0.01);
-                    s->lum += lum(exact.pixels[i]);
-                    s->refLum += lum(ref);
-                    const glm::vec3 t = exact.pixels[i], b = r.baseline ? r.baseline->image.pixels[i] : glm::vec3(0.0f);
-                    for (int c = 0; c < 3; ++c) {
-                        const double dn = double(t[c]) * t[c] + 0.01;
-                        s->neural += (double(a[c]) - t[c]) * (double(a[c]) - t[c]) / dn;
-                        s->baseline += (double(b[c]) - t[c]) * (double(b[c]) - t[c]) / dn;
-                    }
-                }
-            const glm::vec3 b = r.baseline ? r.baseline->image.pixels[i] : glm::vec3(0.0f);
-            for (Sums* s : {&sums[size_t(o)], &sums[objects]}) {
-                ++s->pixels;
-                for (int c = 0; c < 3; ++c) {
-                    const double d = double(ref[c]) * ref[c] + 0.01;
-                    s->neural += (double(a[c]) - ref[c]) * (double(a[c]) - ref[c]) / d;
-                    s->baseline += (double(b[c]) - ref[c]) * (double(b[c]) - ref[c]) / d;
-                }
-                s->refLum += lum(ref);
-                s->neuralLum += lum(a);
-                s->baselineLum += lum(b);
-            }
+    std::vector<Sums> sums(objects + 1);
+    for (size_t i = 0; i < interior.size(); ++i) {
+        if (!interior[i]) continue;
+        const glm::vec3 ref = r.reference.pixels[i], a = r.neural.image.pixels[i];
+        const glm::vec3 b = r.baseline ? r.baseline->image.pixels[i] : glm::vec3(0.0f), t = exact.pixels[i];
+        for (Sums* s : {&sums[size_t(hits.inserted[i])], &sums[objects]}) {
+            ++s->pixels;
+            s->neural += relMse(a, ref);
+            s->baseline += relMse(b, ref);
+            s->refLum += luminance(ref);
+            s->neuralLum += luminance(a);
+            s->baselineLum += luminance(b);
+            if (!exactAt[i]) continue;
+            ++s->exactPixels;
+            s->exact += relMse(t, ref);
+            s->exactLum += luminance(t);
+            s->exactRefLum += luminance(ref);
+            s->neuralVsExact += relMse(a, t);
+            s->baselineVsExact += relMse(b, t);
         }
+    }
+    auto ratio = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
     for (size_t o = 0; o <= objects; ++o) {
         if (o == objects && objects == 1) break;
         const Sums& s = sums[o];
         InsertedFigure f;
         f.name = o < objects ? v.scene.insertedNames[o] : "all inserted objects";
         f.pixels = s.pixels;
-        if (s.pixels > 0) {
-            f.neuralRelMse = s.neural / double(3 * s.pixels);
-            f.baselineRelMse = s.baseline / double(3 * s.pixels);
-            f.neuralMeanRatio = s.refLum > 0.0 ? s.neuralLum / s.refLum : 0.0;
-            f.baselineMeanRatio = s.refLum > 0.0 ? s.baselineLum / s.refLum : 0.0;
-        }
-        const ExactSums& e = exactSums[o];
-        f.exactPixels = e.pixels;
-        if (e.pixels > 0) {
-            f.exactRelMse = e.err / double(3 * e.pixels);
-            f.exactMeanRatio = e.refLum > 0.0 ? e.lum / e.refLum : 0.0;
-            f.neuralVsExact = e.neural / double(3 * e.pixels);
-            f.baselineVsExact = e.baseline / double(3 * e.pixels);
-        }
+        f.neuralRelMse = ratio(s.neural, double(s.pixels));
+        f.baselineRelMse = ratio(s.baseline, double(s.pixels));
+        f.neuralMeanRatio = ratio(s.neuralLum, s.refLum);
+        f.baselineMeanRatio = ratio(s.baselineLum, s.refLum);
+        f.exactPixels = s.exactPixels;
+        f.exactRelMse = ratio(s.exact, double(s.exactPixels));
+        f.exactMeanRatio = ratio(s.exactLum, s.exactRefLum);
+        f.neuralVsExact = ratio(s.neuralVsExact, double(s.exactPixels));
+        f.baselineVsExact = ratio(s.baselineVsExact, double(s.exactPixels));
         r.inserted.push_back(f);
         char line[640];
         if (r.baseline)
             std::snprintf(line, sizeof line,
                           "inserted %s: %zu pixels, relMSE asset %.4g, SH irradiance probes %.4g (%.3gx), exact volume light %.4g; "
                           "mean %.3f, %.3f, %.3f of the reference's; against the exact volume light: asset %.4g, SH %.4g (%.3gx)",
-                          f.name.c_str(), f.pixels, f.neuralRelMse, f.baselineRelMse,
-                          f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0, f.exactRelMse, f.neuralMeanRatio,
-                          f.baselineMeanRatio, f.exactMeanRatio, f.neuralVsExact, f.baselineVsExact,
-                          f.neuralVsExact > 0.0 ? f.baselineVsExact / f.neuralVsExact : 0.0);
+                          f.name.c_str(), f.pixels, f.neuralRelMse, f.baselineRelMse, ratio(f.baselineRelMse, f.neuralRelMse),
+                          f.exactRelMse, f.neuralMeanRatio, f.baselineMeanRatio, f.exactMeanRatio, f.neuralVsExact,
+                          f.baselineVsExact, ratio(f.baselineVsExact, f.neuralVsExact));
         else
             std::snprintf(line, sizeof line, "inserted %s: %zu pixels, relMSE asset %.4g, exact volume light %.4g; mean %.3f, %.3f of the reference's",
                           f.name.c_str(), f.pixels, f.neuralRelMse, f.exactRelMse, f.neuralMeanRatio, f.exactMeanRatio);

@@ -28,6 +28,7 @@
 #include "gpu/gbuffer.h"
 #include "gpu/vulkan_compute.h"
 #include "support/random_asset.h"
+#include "support/shade_reference.h"
 #include "support/test_paths.h"
 #include "support/test_trees.h"
 
@@ -111,21 +112,7 @@ Result runVolumeOnCpu(const nrad::Asset& asset, const GBuffer& g, bool shade) {
     r.rgb.resize(3 * n);
     std::vector<uint8_t> f(n);
     EXPECT_EQ(nradEvaluateVolumeBatch(asset.get(), n, g.positions.data(), g.normals.data(), r.rgb.data(), f.data()), NRAD_OK);
-    if (shade)
-        for (size_t i = 0; i < n; ++i) {
-            const NradSurface& in = g.surfaces[i];
-            eval::Surface s;
-            for (int c = 0; c < 3; ++c) s.baseColor[c] = in.baseColor[c], s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
-            s.metallic = in.metallic;
-            s.roughness = in.roughness;
-            s.specular = in.specular;
-            const float* nn = &g.normals[3 * i];
-            const float* d = &g.directions[3 * i];
-            const float cosNV = nn[0] * d[0] + nn[1] * d[1] + nn[2] * d[2];
-            float out[3];
-            eval::shadeVolume(&r.rgb[3 * i], s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
-            for (int c = 0; c < 3; ++c) r.rgb[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
-        }
+    if (shade) test::shadeReference(0, n, g.normals.data(), g.directions.data(), g.surfaces.data(), r.rgb.data(), true);
     r.flags.assign(f.begin(), f.end());
     return r;
 }
@@ -169,6 +156,20 @@ GBuffer randomPoints(size_t count, uint32_t seed) {
     return g;
 }
 
+// Turns a random grid asset into a kd-tree one: a random tree over a 16^3 lattice, a network in every other leaf
+// (its weights resized, for the caller to fill). False if the tree is not valid.
+bool makeTreeAsset(format::Asset& a) {
+    for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
+    a.header.flags |= format::kFlagTree;
+    a.tree = test::randomTree(a.grid.dims, 90, 8);
+    uint32_t leaves = 0;
+    if (!format::validateTree(a.grid.dims, a.tree, leaves)) return false;
+    a.voxels.clear();
+    for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
+    a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+    return true;
+}
+
 nrad::Asset load(const format::Asset& a) {
     const std::vector<uint8_t> bytes = format::encode(a);
     nrad::Asset asset;
@@ -201,16 +202,9 @@ TEST(Gpu, RandomBatchesMatchTheCpuRuntime) {
     for (const Case& c : cases) {
         format::Asset a = test::randomAsset(c.hidden, format::WeightEncoding::Float16, c.transform, 11, glm::uvec3(4, 3, 5), c.band);
         if (c.tree) {
-            for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
-            a.header.flags |= format::kFlagTree;
-            a.tree = test::randomTree(a.grid.dims, 90, 8);
-            uint32_t leaves = 0;
-            ASSERT_TRUE(format::validateTree(a.grid.dims, a.tree, leaves));
-            a.voxels.clear();
-            for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
+            ASSERT_TRUE(makeTreeAsset(a));
             std::mt19937 rng(5);
             std::uniform_real_distribution<float> u(-0.6f, 0.6f);
-            a.weights.resize(a.voxels.size() * a.topology.parameterCount());
             for (float& w : a.weights) w = format::halfToFloat(format::floatToHalf(u(rng)));
         }
         if (c.extreme) {
@@ -239,14 +233,7 @@ TEST(Gpu, VolumeQueryMatchesTheCpuRuntime) {
             format::Asset a = test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 11,
                                                 glm::uvec3(4, 3, 5), band);
             if (tree) {
-                for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
-                a.header.flags |= format::kFlagTree;
-                a.tree = test::randomTree(a.grid.dims, 90, 8);
-                uint32_t leaves = 0;
-                ASSERT_TRUE(format::validateTree(a.grid.dims, a.tree, leaves));
-                a.voxels.clear();
-                for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
-                a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+                ASSERT_TRUE(makeTreeAsset(a));
             }
             std::mt19937 rng(21);
             std::uniform_real_distribution<float> u(-0.6f, 0.6f);
@@ -306,14 +293,7 @@ TEST(Gpu, HlslMatchesTheCpuRuntime) {
     for (const Case& c : cases) {
         format::Asset a = test::randomAsset(c.hidden, format::WeightEncoding::Float16, c.transform, 11, glm::uvec3(4, 3, 5), c.band);
         if (c.tree) {
-            for (int k = 0; k < 3; ++k) a.grid.dims[k] = 16;
-            a.header.flags |= format::kFlagTree;
-            a.tree = test::randomTree(a.grid.dims, 90, 8);
-            uint32_t leaves = 0;
-            ASSERT_TRUE(format::validateTree(a.grid.dims, a.tree, leaves));
-            a.voxels.clear();
-            for (uint32_t l = 0; l < leaves; l += 2) a.voxels.push_back({l, 0.5f + 0.1f * float(l)});
-            a.weights.resize(a.voxels.size() * a.topology.parameterCount());
+            ASSERT_TRUE(makeTreeAsset(a));
         }
         std::mt19937 rng(23);
         std::uniform_real_distribution<float> u(-0.6f, 0.6f);

@@ -15,6 +15,7 @@
 
 #include "runtime/src/testing.h"  // rt::testing::gbufferBlocksSoFar(): which path the vector kernels took
 #include "support/random_asset.h"
+#include "support/shade_reference.h"
 #include "support/test_trees.h"
 
 namespace nrad {
@@ -33,30 +34,6 @@ void normalise(float v[3]) {
     const float len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     const float inv = 1.0f / std::sqrt(len2);
     for (int k = 0; k < 3; ++k) v[k] *= inv;
-}
-
-// nradShadeBatch's contract applied to the asset's evaluation here, point by point (docs/runtime.md, "Shading
-// contract"): eval::shade with non-finite emission terms as 0, the cosine of normal and direction (0 if not
-// finite), non-finite results as 0. The reference every shaded result must match bit for bit.
-void shadeReference(uint32_t contentFlags, size_t count, const float* n, const float* d, const NradSurface* surfaces,
-                    float* rgb) {
-    for (size_t i = 0; i < count; ++i) {
-        const NradSurface& in = surfaces[i];
-        eval::Surface s;
-        for (int c = 0; c < 3; ++c) {
-            s.baseColor[c] = in.baseColor[c];
-            s.emission[c] = std::isfinite(in.emission[c]) ? in.emission[c] : 0.0f;
-        }
-        s.metallic = in.metallic;
-        s.roughness = in.roughness;
-        s.specular = in.specular;
-        const float* nn = n + 3 * i;
-        const float* dd = d + 3 * i;
-        const float cosNV = nn[0] * dd[0] + nn[1] * dd[1] + nn[2] * dd[2];
-        float out[3];
-        eval::shade(contentFlags, rgb + 3 * i, s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
-        for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
-    }
 }
 
 struct Fixture {
@@ -136,7 +113,7 @@ TEST(GBuffer, StridedFp16InputsMatchTheBatchCallsBitForBit) {
             std::vector<uint8_t> expectedFlags(count), flags(count);
             ASSERT_EQ(f.asset.evaluateBatch(count, f.p.data(), f.n.data(), f.d.data(), expected.data(), expectedFlags.data()),
                       NRAD_OK);
-            if (shade) shadeReference(f.source.header.flags, count, f.n.data(), f.d.data(), f.surfaces.data(), expected.data());
+            if (shade) test::shadeReference(f.source.header.flags, count, f.n.data(), f.d.data(), f.surfaces.data(), expected.data());
             NradGBuffer g = f.describe(eyeMode);
             g.surfaces = shade ? f.surfaces.data() : nullptr;
             g.pointFlags = flags.data();
@@ -324,7 +301,7 @@ TEST(GBuffer, EveryLayoutThroughTheVectorPathMatchesTheBatchCalls) {
                                                           expectedFlags.data()),
                                       NRAD_OK);
                             if (shade) {
-                                shadeReference(source.header.flags, count, rn.data(), rd.data(), surfaces.data(),
+                                test::shadeReference(source.header.flags, count, rn.data(), rd.data(), surfaces.data(),
                                                expected.data());
                                 // nradShadeBatch, which runs the same driver, against the same reference.
                                 std::vector<float> batch(3 * count);
@@ -469,21 +446,7 @@ TEST(GBuffer, TheVolumeQueryMatchesTheVolumeBatchAndShadeVolume) {
             std::vector<float> expected(3 * count), got(3 * count, -1.0f);
             std::vector<uint8_t> expectedFlags(count), flags(count);
             ASSERT_EQ(nradEvaluateVolumeBatch(f.asset.get(), count, f.p.data(), f.n.data(), expected.data(), expectedFlags.data()), NRAD_OK);
-            if (shade)
-                for (size_t i = 0; i < count; ++i) {
-                    const NradSurface& in = f.surfaces[i];
-                    eval::Surface s;
-                    for (int c = 0; c < 3; ++c) s.baseColor[c] = in.baseColor[c], s.emission[c] = in.emission[c];
-                    s.metallic = in.metallic;
-                    s.roughness = in.roughness;
-                    s.specular = in.specular;
-                    const float* n = &f.n[3 * i];
-                    const float* d = &f.d[3 * i];
-                    const float cosNV = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
-                    float out[3];
-                    eval::shadeVolume(&expected[3 * i], s, std::isfinite(cosNV) ? cosNV : 0.0f, out);
-                    for (int c = 0; c < 3; ++c) expected[3 * i + size_t(c)] = std::isfinite(out[c]) ? out[c] : 0.0f;
-                }
+            if (shade) test::shadeReference(0, count, f.n.data(), f.d.data(), f.surfaces.data(), expected.data(), true);
             NradGBuffer g = f.describe(eyeMode);
             g.flags |= NRAD_GBUFFER_VOLUME;
             if (!shade && !eyeMode) g.direction = {nullptr, 0, NRAD_FORMAT_F32};  // not read

@@ -115,4 +115,31 @@ std::vector<uint8_t> bakeBytes(const Scene& scene, const BakeSettings& settings,
     return format::encode(bakeScene(scene, settings).asset);
 }
 
+Scene makeScaffold() {
+    Scene scene;
+    scene.sourcePath = "<scaffold>";
+    Material m;
+    m.baseColor = glm::vec3(0.0f);
+    m.metallic = 0.0f;
+    m.specular = 0.0f;
+    m.doubleSided = true;
+    scene.materials.push_back(m);
+    TriangleMesh& mesh = scene.mesh;
+    for (int c = 0; c < 8; ++c) {
+        const glm::vec3 corner(c & 1 ? 1.0f : -1.0f, c & 2 ? 1.0f : -1.0f, c & 4 ? 1.0f : -1.0f);
+        const glm::vec3 in = -0.01f * corner;
+        const uint32_t at = uint32_t(mesh.positions.size());
+        for (const glm::vec3& p : {corner, corner + glm::vec3(in.x, 0, 0), corner + glm::vec3(0, in.y, 0)}) {
+            mesh.positions.push_back(p);
+            mesh.normals.emplace_back(0, 0, corner.z);
+            mesh.uv0.emplace_back(0.0f);
+            mesh.uv1.emplace_back(0.0f);
+        }
+        mesh.triangles.push_back({at, at + 1, at + 2});
+        mesh.materialIds.push_back(0);
+    }
+    scene.updateBounds();
+    return scene;
+}
+
 }  // namespace nrad::test

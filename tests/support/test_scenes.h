@@ -17,6 +17,10 @@ Scene makeSphereFurnace(const Material& material, float radius = 1.0f, int segme
 // camera above it looking straight down; lights are added by the caller.
 Scene makeLitPlane(float albedo, float halfSize = 10.0f);
 
+// Eight black 1 cm triangles at the corners of a 2 m cube around the origin: the scene's bounds, and next to
+// nothing that occludes or reflects. A receiver inside is lit by the environment and the lights alone.
+Scene makeScaffold();
+
 // Path traces scene.cameras[0] into a size x size image (NEE by power, MIS; maxDepth 0 = unbounded).
 Image renderPathTraced(const Scene& scene, int size, int spp, int maxDepth = 0, uint32_t seed = 1, int tileSize = 16);
 

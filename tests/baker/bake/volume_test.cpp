@@ -10,43 +10,13 @@
 #include "baker/bake/baker.h"
 #include "baker/nn/random.h"
 #include "baker/scene/gltf_loader.h"
+#include "baker/util/maths.h"
 #include "support/test_paths.h"
 #include "support/test_scenes.h"
 #include "support/volume_query.h"
 
 namespace nrad {
 namespace {
-
-constexpr float kPi = 3.14159265358979f;
-
-// Eight black 1 cm triangles at the corners of a 2 m cube: the scene's bounds, and next to nothing that occludes
-// or reflects. A receiver inside is lit by the environment and the lights alone.
-Scene scaffold() {
-    Scene scene;
-    scene.sourcePath = "<scaffold>";
-    Material m;
-    m.baseColor = glm::vec3(0.0f);
-    m.metallic = 0.0f;
-    m.specular = 0.0f;
-    m.doubleSided = true;
-    scene.materials.push_back(m);
-    TriangleMesh& mesh = scene.mesh;
-    for (int c = 0; c < 8; ++c) {
-        const glm::vec3 corner(c & 1 ? 1.0f : -1.0f, c & 2 ? 1.0f : -1.0f, c & 4 ? 1.0f : -1.0f);
-        const glm::vec3 in = -0.01f * corner;
-        const uint32_t at = uint32_t(mesh.positions.size());
-        for (const glm::vec3& p : {corner, corner + glm::vec3(in.x, 0, 0), corner + glm::vec3(0, in.y, 0)}) {
-            mesh.positions.push_back(p);
-            mesh.normals.emplace_back(0, 0, corner.z);
-            mesh.uv0.emplace_back(0.0f);
-            mesh.uv1.emplace_back(0.0f);
-        }
-        mesh.triangles.push_back({at, at + 1, at + 2});
-        mesh.materialIds.push_back(0);
-    }
-    scene.updateBounds();
-    return scene;
-}
 
 BakeSettings volumeBake() {
     BakeSettings s;
@@ -81,7 +51,7 @@ double rmsError(const test::VolumeQuery& query, Expected expected, float scale) 
 }
 
 TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
     scene.environment.color = L;
@@ -96,7 +66,7 @@ TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
 }
 
 TEST(VolumeLight, AReceiverUnderASunScattersItsIlluminanceTimesTheCosineOverPi) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     PunctualLight sun;
     sun.type = PunctualLight::Type::Directional;
     sun.direction = glm::normalize(glm::vec3(-0.3f, -1.0f, -0.2f));  // the light travels down
@@ -143,7 +113,7 @@ TEST(VolumeLight, AReceiverInASealedDarkRoomReadsItsDarknessNotTheLitRoom) {
 }
 
 TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     scene.environment.kind = Environment::Kind::Constant;
     scene.environment.color = glm::vec3(1.0f);
     BakeSettings s = volumeBake();

@@ -13,47 +13,18 @@
 #include "baker/render/neural_render.h"
 #include "baker/render/path_tracer.h"
 #include "baker/scene/gltf_loader.h"
+#include "baker/util/maths.h"
 #include "baker/validate/sh_irradiance.h"
 #include "support/test_paths.h"
+#include "support/test_scenes.h"
 
 namespace nrad {
 namespace {
 
-constexpr float kPi = 3.14159265358979f;
-
-// Eight black 1 cm triangles at the corners of a 2 m cube: the scene's bounds, and next to nothing that occludes
-// or reflects.
-Scene scaffold() {
-    Scene scene;
-    scene.sourcePath = "<scaffold>";
-    Material m;
-    m.baseColor = glm::vec3(0.0f);
-    m.metallic = 0.0f;
-    m.specular = 0.0f;
-    m.doubleSided = true;
-    scene.materials.push_back(m);
-    TriangleMesh& mesh = scene.mesh;
-    for (int c = 0; c < 8; ++c) {
-        const glm::vec3 corner(c & 1 ? 1.0f : -1.0f, c & 2 ? 1.0f : -1.0f, c & 4 ? 1.0f : -1.0f);
-        const glm::vec3 in = -0.01f * corner;
-        const uint32_t at = uint32_t(mesh.positions.size());
-        for (const glm::vec3& p : {corner, corner + glm::vec3(in.x, 0, 0), corner + glm::vec3(0, in.y, 0)}) {
-            mesh.positions.push_back(p);
-            mesh.normals.emplace_back(0, 0, corner.z);
-            mesh.uv0.emplace_back(0.0f);
-            mesh.uv1.emplace_back(0.0f);
-        }
-        mesh.triangles.push_back({at, at + 1, at + 2});
-        mesh.materialIds.push_back(0);
-    }
-    scene.updateBounds();
-    return scene;
-}
-
 std::string sphereFile() { return test::sourcePath("scenes/objects/sphere.gltf"); }
 
 TEST(InsertObject, AppendsTheObjectsTrianglesAndMaterialsMovedAndRecordsThem) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     const Scene sphere = loadGltf(sphereFile());
     ASSERT_GT(sphere.mesh.triangleCount(), 1000u);
     const size_t before = scene.mesh.triangleCount();
@@ -82,7 +53,7 @@ TEST(InsertObject, AppendsTheObjectsTrianglesAndMaterialsMovedAndRecordsThem) {
 }
 
 TEST(ShIrradianceProbes, AUniformSkyGivesItsRadianceAtEveryNormal) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
     scene.environment.color = L;
@@ -129,7 +100,7 @@ TEST(ShIrradianceProbes, AProbeInsideAClosedSolidIsLeftOut) {
 // An unoccluded white sphere (albedo 0.8, Lambertian) under a uniform sky of radiance L, placed after the bake:
 // through the asset's volume query every pixel of it reads 0.8 L, as the path tracer says.
 TEST(InsertedObjects, AWhiteSphereUnderAUniformSkyIsShadedThroughTheVolumeQuery) {
-    Scene scene = scaffold();
+    Scene scene = test::makeScaffold();
     scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
     scene.environment.color = L;
