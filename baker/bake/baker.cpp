@@ -275,7 +275,9 @@ BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const
     if (cells.budgeted) {
         cells.lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         cells.reserve = metadataReserve(scene, settings, result);
-        result.partition = refinePartition(cells.lattice, samples, learned, topology, settings.partition, cells.reserve,
+        PartitionSettings partition = settings.partition;
+        partition.volumeNetworks = settings.volume.enabled;  // the volume's networks in the budget too
+        result.partition = refinePartition(cells.lattice, samples, learned, topology, partition, cells.reserve,
                                            settings.partition.measured ? briefTrainingScorer(samples, settings.train, group) : LeafScorer(),
                                            progress.partition);
     }
@@ -557,7 +559,8 @@ BakeSettings resolvedBakeSettings(BakeSettings s) {
     uint64_t points = 0;
     if (s.partition.budgetBytes > 0) {
         const format::Topology t = bakeTopology(s);
-        const uint64_t networks = s.partition.budgetBytes / (t.parameterCount() * t.bytesPerWeight() + 40);
+        // With the volume's networks the budget pays for two networks per leaf: half as many leaves.
+        const uint64_t networks = s.partition.budgetBytes / ((s.volume.enabled ? 2 : 1) * (t.parameterCount() * t.bytesPerWeight() + 40));
         points = std::clamp<uint64_t>(networks * kPointsPerNetwork, kBasePoints, kMaxAutomaticPoints);
     } else if (integral) {
         points = std::clamp<uint64_t>(kIntegralPointsPerCell * cells, kIntegralMinPoints, kMaxAutomaticPoints);
@@ -584,8 +587,6 @@ struct BakeGroups {
 
 // The plan: the scene's BVH, lights, grid and surface pieces (the time into result).
 std::unique_ptr<BakeTracing> setupPhase(const Scene& scene, const BakeSettings& settings, BakeResult& result) {
-    if (settings.volume.enabled && settings.partition.budgetBytes > 0)
-        throw std::invalid_argument("the volume's networks are not in a byte budget yet: bake them on a grid");
     auto t0 = std::chrono::steady_clock::now();
     auto tracing = std::make_unique<BakeTracing>(scene, settings);
     result.surfaceArea = tracing->pieces.totalArea();
@@ -656,7 +657,7 @@ std::vector<int> trainPhases(const Scene& scene, const BakeSettings& settings, c
     assembleAsset(scene, settings, cells, topology, result);
     if (cells.budgeted) {
         const format::Asset& a = result.asset;
-        const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size());
+        const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size(), a.volumeVoxels.size());
         if (a.metadata.size() > cells.reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
             throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
                                    std::to_string(settings.partition.budgetBytes));

@@ -44,6 +44,9 @@ struct PartitionSettings {
     // blending band crosses it (a band there had shaded the dark room's floor along the wall with the lit room's
     // network: docs/design.md). 0: none.
     float hardGap = 0.0f;
+    // A network of the light in the volume per leaf (BakeSettings::volume), counted in the budget: every leaf may
+    // get one (each with free space does), so the budget pays for one per leaf, beside the surfaces' networks.
+    bool volumeNetworks = false;
 };
 
 // The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).

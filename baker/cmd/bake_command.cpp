@@ -354,8 +354,12 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.volume.paths = o.volumePaths;
     if (s.volume.enabled && (o.volumePaths == 0 || o.volumePaths > 4096)) return usage("--volume-paths: expected 1 to 4096");
     if (s.volume.enabled && o.volumePoints > 1000000) return usage("--volume-points: expected at most 1000000");
-    if (s.volume.enabled && s.partition.budgetBytes > 0)
-        return usage("--volume-points with --budget: the volume's networks are not in a budget yet; bake them on a grid (--grid)");
+    if (s.volume.enabled && s.partition.budgetBytes > 0) {  // the smallest asset has a volume network too
+        const uint64_t smallest = format::encodedSize(bakeTopology(s), 1, 1, 0, 1);
+        if (s.partition.budgetBytes < smallest)
+            return usage("--budget " + o.budget + " with --volume-points: below the smallest asset of one network and one of the volume (" +
+                         std::to_string(smallest) + " bytes)");
+    }
     s.train.demodulate = !o.noDemodulate;
     s.walls.enabled = !o.noWallSplits;
     s = resolvedBakeSettings(s);

@@ -324,6 +324,11 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
     // A budget below one network's asset names the smallest one.
     EXPECT_NE(run("bake " + cornell() + out + " --budget 300").output.find("below the smallest asset of one network (564 bytes)"),
               std::string::npos);
+    // ... with the volume's networks, one of each.
+    RunResult small = run("bake " + cornell() + out + " --budget 600 --volume-points 100");
+    EXPECT_EQ(small.exitCode, 2);
+    EXPECT_NE(small.output.find("--budget 600 with --volume-points: below the smallest asset of one network and one of the volume (888 bytes)"),
+              std::string::npos) << small.output;
     std::string bad = test::sourcePath("tests/data/malformed/index-out-of-range.gltf");
     RunResult r = run("bake '" + bad + "'" + out);
     EXPECT_EQ(r.exitCode, 3);

@@ -78,10 +78,15 @@ TEST_P(ShardBake, ShardsInOneOrTwoStagesMergeIntoTheOneProcessBytes) {
     EXPECT_TRUE(fileBytes(again) == fileBytes(parts[1])) << "a shard run again wrote other bytes";
 }
 
-INSTANTIATE_TEST_SUITE_P(Kinds, ShardBake, testing::Values("", "--budget 12K", "--volume-points 60 --volume-paths 2 --nee learned"),
-                         [](const testing::TestParamInfo<const char*>& p) {
-                             return std::string(p.index == 0 ? "Grid" : p.index == 1 ? "Budget" : "Volume");
-                         });
+std::string kindName(const testing::TestParamInfo<const char*>& p) {
+    static const char* const names[] = {"Grid", "Budget", "Volume", "BudgetVolume"};
+    return names[p.index];
+}
+
+INSTANTIATE_TEST_SUITE_P(Kinds, ShardBake,
+                         testing::Values("", "--budget 12K", "--volume-points 60 --volume-paths 2 --nee learned",
+                                         "--budget 12K --volume-points 60 --volume-paths 2"),
+                         kindName);
 
 // The parts of a two-shard grid bake, made once for the refusal tests.
 class ShardParts : public testing::Test {

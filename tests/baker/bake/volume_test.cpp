@@ -65,6 +65,37 @@ TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
     EXPECT_LT(err, 0.02) << "rms error over |L| = 1 (the green channel)";
 }
 
+// Under a byte budget the cells are a kd-tree's leaves: the budget pays for a volume network per leaf beside the
+// surfaces' networks, the asset keeps to it, and the query through the tree keeps the closed form.
+TEST(VolumeLight, UnderAByteBudgetTheVolumeNetworksFitAndKeepTheClosedForm) {
+    Scene scene = test::makeScaffold();
+    scene.environment.kind = Environment::Kind::Constant;
+    const glm::vec3 L(0.5f, 1.0f, 2.0f);
+    scene.environment.color = L;
+    BakeSettings s = volumeBake();
+    s.partition.budgetBytes = 3 * 1024;
+    s.partition.levels = 4;
+    s.partition.minLeafSamples = 64;
+    const BakeResult r = bakeScene(scene, s);
+    const std::vector<uint8_t> bytes = format::encode(r.asset);
+    EXPECT_LE(bytes.size(), s.partition.budgetBytes);
+    ASSERT_FALSE(r.asset.tree.empty());
+    EXPECT_GT(r.asset.leafCount, 2u);
+    EXPECT_EQ(r.asset.volumeVoxels.size(), r.asset.leafCount) << "every leaf of the scaffold has free space";
+    // The budget held two networks per leaf: without the volume the same budget refines to about twice the leaves.
+    BakeSettings plain = s;
+    plain.volume.enabled = false;
+    const BakeResult without = bakeScene(scene, plain);
+    EXPECT_GT(without.asset.leafCount, r.asset.leafCount);
+    std::printf("3 KB: %u leaves with the volume's networks, %u without; %zu bytes\n", r.asset.leafCount, without.asset.leafCount,
+                bytes.size());
+    const test::VolumeQuery query(r.asset);
+    const double err = rmsError(query, [&](const glm::vec3&) { return L; }, 1.0f);
+    std::printf("uniform sky, kd-tree: rms error %.4f of L's green\n", err);
+    EXPECT_LT(err, 0.02);
+    EXPECT_TRUE(test::bakeBytes(scene, s, 1) == test::bakeBytes(scene, s, 2));
+}
+
 TEST(VolumeLight, AReceiverUnderASunScattersItsIlluminanceTimesTheCosineOverPi) {
     Scene scene = test::makeScaffold();
     PunctualLight sun;
