@@ -340,12 +340,16 @@ format::Asset mergeNetworkParts(const std::vector<std::string>& paths) {
                               a.topology.outputTransform == merged.topology.outputTransform &&
                               a.voxels.size() == merged.voxels.size() && a.leafCount == merged.leafCount &&
                               a.tree.size() == merged.tree.size() && m == meta &&
-                              a.volumeWeights == merged.volumeWeights;  // (every shard trains the volume whole)
+                              a.volumeWeights == merged.volumeWeights &&  // (every shard trains the volume whole)
+                              a.glossyWeights == merged.glossyWeights;
             bool sameCells = same;
             for (size_t v = 0; sameCells && v < a.voxels.size(); ++v) sameCells = a.voxels[v].index == merged.voxels[v].index;
             sameCells = sameCells && a.volumeVoxels.size() == merged.volumeVoxels.size();
             for (size_t v = 0; sameCells && v < a.volumeVoxels.size(); ++v)
                 sameCells = a.volumeVoxels[v].index == merged.volumeVoxels[v].index && a.volumeVoxels[v].scale == merged.volumeVoxels[v].scale;
+            sameCells = sameCells && a.glossyVoxels.size() == merged.glossyVoxels.size();
+            for (size_t v = 0; sameCells && v < a.glossyVoxels.size(); ++v)
+                sameCells = a.glossyVoxels[v].index == merged.glossyVoxels[v].index && a.glossyVoxels[v].scale == merged.glossyVoxels[v].scale;
             for (size_t t = 0; sameCells && t < a.tree.size(); ++t)
                 sameCells = a.tree[t].axis == merged.tree[t].axis && a.tree[t].split == merged.tree[t].split &&
                             a.tree[t].child == merged.tree[t].child && a.tree[t].hard == merged.tree[t].hard;

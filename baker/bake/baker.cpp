@@ -115,6 +115,9 @@ glm::vec3 positionInCell(const eval::Partition& partition, const AdaptivePartiti
     }
     return local;
 }
+
+// The volume's networks per cell: none, 1, or 2 with its glossy response.
+uint32_t volumeSets(const BakeSettings& s) { return s.volume.enabled ? (s.volume.glossy ? 2u : 1u) : 0u; }
 }  // namespace
 
 uint32_t roundPoints(size_t networks) { return uint32_t(std::clamp<size_t>(2000 * networks, 50000, 4000000)); }
@@ -276,7 +279,7 @@ BakeCells partitionCells(const Scene& scene, const BakeSettings& settings, const
         cells.lattice = VoxelGrid(scene.bounds, latticeDims(scene.bounds, settings.partition.levels)).grid();
         cells.reserve = metadataReserve(scene, settings, result);
         PartitionSettings partition = settings.partition;
-        partition.volumeNetworks = settings.volume.enabled;  // the volume's networks in the budget too
+        partition.volumeNetworks = volumeSets(settings);  // the volume's networks in the budget too
         result.partition = refinePartition(cells.lattice, samples, learned, topology, partition, cells.reserve,
                                            settings.partition.measured ? briefTrainingScorer(samples, settings.train, group) : LeafScorer(),
                                            progress.partition);
@@ -425,6 +428,10 @@ void assembleAsset(const Scene& scene, const BakeSettings& settings, const BakeC
         a.volumeVoxels.push_back({v.voxel, v.scale});
         a.volumeWeights.insert(a.volumeWeights.end(), v.params.begin(), v.params.end());
     }
+    for (const VoxelTrainResult& v : result.glossy) {
+        a.glossyVoxels.push_back({v.voxel, v.scale});
+        a.glossyWeights.insert(a.glossyWeights.end(), v.params.begin(), v.params.end());
+    }
     if (settings.metadata) a.metadata = assetMetadata(scene, settings, result);
 }
 
@@ -559,8 +566,8 @@ BakeSettings resolvedBakeSettings(BakeSettings s) {
     uint64_t points = 0;
     if (s.partition.budgetBytes > 0) {
         const format::Topology t = bakeTopology(s);
-        // With the volume's networks the budget pays for two networks per leaf: half as many leaves.
-        const uint64_t networks = s.partition.budgetBytes / ((s.volume.enabled ? 2 : 1) * (t.parameterCount() * t.bytesPerWeight() + 40));
+        // With the volume's networks the budget pays for two or three networks per leaf: as many times fewer leaves.
+        const uint64_t networks = s.partition.budgetBytes / ((1 + volumeSets(s)) * (t.parameterCount() * t.bytesPerWeight() + 40));
         points = std::clamp<uint64_t>(networks * kPointsPerNetwork, kBasePoints, kMaxAutomaticPoints);
     } else if (integral) {
         points = std::clamp<uint64_t>(kIntegralPointsPerCell * cells, kIntegralMinPoints, kMaxAutomaticPoints);
@@ -612,13 +619,13 @@ std::vector<TrainingSample> samplePhase(const Scene& scene, const BakeSettings& 
     return samples;
 }
 
-// The volume's networks (BakeSettings::volume) into result.volume: samples in every cell's free space, one network
-// per cell that has any, trained as the surfaces' are. Every process of a group computes them whole.
-void volumePhase(const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells, BakeResult& result) {
-    const auto t0 = std::chrono::steady_clock::now();
+// The volume's networks (BakeSettings::volume), or with `glossy` its glossy response's: samples in every cell's free
+// space, one network per cell that has any, trained as the surfaces' are. Every process of a group computes them whole.
+std::vector<VoxelTrainResult> volumeNetworks(const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells,
+                                             BakeResult& result, bool glossy) {
     const eval::Partition partition = cellPartition(cells, result.partition);
-    const std::vector<TrainingSample> samples =
-        generateVolumeSamples(tracing.tracer, partition, settings.volume, settings.samples.seed, settings.samples.maxDepth, result.volumeStats);
+    const std::vector<TrainingSample> samples = generateVolumeSamples(tracing.tracer, partition, settings.volume, settings.samples.seed,
+                                                                      settings.samples.maxDepth, glossy ? result.glossyStats : result.volumeStats, glossy);
     std::vector<uint32_t> cellOf(samples.size());
     for (size_t i = 0; i < samples.size(); ++i) cellOf[i] = samples[i].voxel;
     const std::vector<std::vector<VoxelSample>> byCell = samplesByNetwork(partition, cellOf, samples, [&](size_t i) {
@@ -631,7 +638,13 @@ void volumePhase(const BakeSettings& settings, const BakeTracing& tracing, const
             occupied.push_back(c);
             lists.push_back(&byCell[c]);
         }
-    result.volume = trainVoxels(occupied, lists, settings.train);
+    return trainVoxels(occupied, lists, settings.train);
+}
+
+void volumePhase(const BakeSettings& settings, const BakeTracing& tracing, const BakeCells& cells, BakeResult& result) {
+    const auto t0 = std::chrono::steady_clock::now();
+    result.volume = volumeNetworks(settings, tracing, cells, result, false);
+    if (settings.volume.glossy) result.glossy = volumeNetworks(settings, tracing, cells, result, true);
     result.timings.volume = since(t0);
 }
 
@@ -657,7 +670,8 @@ std::vector<int> trainPhases(const Scene& scene, const BakeSettings& settings, c
     assembleAsset(scene, settings, cells, topology, result);
     if (cells.budgeted) {
         const format::Asset& a = result.asset;
-        const uint64_t bytes = format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size(), a.volumeVoxels.size());
+        const uint64_t bytes =
+            format::encodedSize(a.topology, a.voxels.size(), a.tree.size(), a.metadata.size(), a.volumeVoxels.size(), a.glossyVoxels.size());
         if (a.metadata.size() > cells.reserve.bytes(a.voxels.size()) || bytes > settings.partition.budgetBytes)
             throw std::logic_error("the adaptive asset's " + std::to_string(bytes) + " bytes exceed the budget of " +
                                    std::to_string(settings.partition.budgetBytes));
@@ -749,6 +763,8 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
     }
     if (settings.volume.enabled)  // only then, so that other assets keep their bytes
         j["bake"]["volume"] = {{"points_per_cell", settings.volume.pointsPerCell}, {"paths", settings.volume.paths}};
+    if (settings.volume.enabled && settings.volume.glossy)  // only then, so that other volume assets keep their bytes
+        j["bake"]["volume"]["glossy_roughness"] = eval::kGlossyRoughness;
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},
                                   {"budget_bytes", settings.partition.budgetBytes},

@@ -102,6 +102,8 @@ struct BakeResult {
     std::vector<GenerationStats> generations;  // integral training: every round, the start included
     std::vector<VoxelTrainResult> volume;  // the volume's networks (BakeSettings::volume), in cell order
     VolumeStats volumeStats;
+    std::vector<VoxelTrainResult> glossy;  // its glossy response (VolumeSettings::glossy), in cell order
+    VolumeStats glossyStats;
 };
 
 struct BakeProgress {

@@ -120,7 +120,7 @@ public:
     Refiner(const format::Grid& lattice, const std::vector<TrainingSample>& samples, const std::vector<float>& learned,
             const format::Topology& topology, const PartitionSettings& settings, const MetadataReserve& reserve)
         : settings_(settings), samples_(samples), learned_(learned), topology_(topology), reserve_(reserve), n_(samples.size()),
-          perNetwork_((settings.volumeNetworks ? 2 : 1) * (8 + topology.parameterCount() * topology.bytesPerWeight()) + reserve.perNetwork) {
+          perNetwork_((1 + settings.volumeNetworks) * (8 + topology.parameterCount() * topology.bytesPerWeight()) + reserve.perNetwork) {
         placeSamples(lattice);
         buildingGrid_ = settings.gridRefine > 0;
         cells_.resize(1);
@@ -187,9 +187,11 @@ private:
     uint64_t networks_ = 0, nodes_ = 1;
     AdaptivePartition out_;
 
-    // A tree of `nodes` nodes has (nodes + 1) / 2 leaves, each with a volume network at most.
+    // A tree of `nodes` nodes has (nodes + 1) / 2 leaves, each with a volume network (and a glossy one) at most.
     uint64_t bytesOf(uint64_t networks, uint64_t nodes) const {
-        return format::encodedSize(topology_, networks, nodes, reserve_.bytes(networks), settings_.volumeNetworks ? (nodes + 1) / 2 : 0);
+        const uint64_t leaves = (nodes + 1) / 2;
+        return format::encodedSize(topology_, networks, nodes, reserve_.bytes(networks), settings_.volumeNetworks >= 1 ? leaves : 0,
+                                   settings_.volumeNetworks >= 2 ? leaves : 0);
     }
 
     // Each sample's lattice coordinate, and what its features need: the lattice's lower corner and the scale that

@@ -44,9 +44,10 @@ struct PartitionSettings {
     // blending band crosses it (a band there had shaded the dark room's floor along the wall with the lit room's
     // network: docs/design.md). 0: none.
     float hardGap = 0.0f;
-    // A network of the light in the volume per leaf (BakeSettings::volume), counted in the budget: every leaf may
-    // get one (each with free space does), so the budget pays for one per leaf, beside the surfaces' networks.
-    bool volumeNetworks = false;
+    // Networks of the light in the volume per leaf (BakeSettings::volume: 1, 2 with its glossy response), counted in
+    // the budget: every leaf may get them (each with free space does), so the budget pays for them per leaf, beside
+    // the surfaces' networks.
+    uint32_t volumeNetworks = 0;
 };
 
 // The lattice's dimensions for a box (each axis at least 1, at most format::kMaxGridDim).

@@ -53,8 +53,18 @@ SurfaceInteraction receiverAt(const glm::vec3& p, const glm::vec3& n) {
     return si;
 }
 
+SurfaceInteraction glossyReceiverAt(const glm::vec3& p, const glm::vec3& n, const glm::vec3& v) {
+    SurfaceInteraction si = receiverAt(p, n);
+    si.wo = v;
+    si.bsdf.metallic = 1.0f;
+    si.bsdf.roughness = eval::kGlossyRoughness;
+    si.bsdf.specular = 1.0f;
+    return si;
+}
+
 std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, const eval::Partition& partition,
-                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats) {
+                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats,
+                                                  bool glossy) {
     const auto t0 = std::chrono::steady_clock::now();
     const uint64_t cells = partition.cells;
     const uint32_t per = settings.pointsPerCell, paths = std::max(1u, settings.paths);
@@ -87,13 +97,22 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
                         ++inside;
                         continue;
                     }
-                    starts.push_back(receiverAt(p, uniformDirection(r)));
+                    const glm::vec3 n = uniformDirection(r);
+                    if (glossy) {  // its own normal and viewer, after every draw the diffuse samples make
+                        SplitMix64 g(r.next() ^ 0x676c6f7373ull);
+                        const glm::vec3 ng = uniformDirection(g);
+                        glm::vec3 v = uniformDirection(g);
+                        if (glm::dot(v, ng) < 0.0f) v = -v;
+                        starts.push_back(glossyReceiverAt(p, ng, v));
+                    } else {
+                        starts.push_back(receiverAt(p, n));
+                    }
                     index.push_back(i);
                 }
                 batch.clear();
                 for (size_t k = 0; k < starts.size(); ++k)
                     for (uint32_t j = 0; j < paths; ++j)
-                        batch.push_back({&starts[k], uint32_t((c * per + index[k]) * 0x9e3779b1u) ^ seed ^ 0x5f3759dfu, j});
+                        batch.push_back({&starts[k], uint32_t((c * per + index[k]) * 0x9e3779b1u) ^ seed ^ (glossy ? 0x2545f491u : 0x5f3759dfu), j});
                 estimates.resize(batch.size());
                 if (!batch.empty()) tracer.estimate(batch.data(), batch.size(), maxDepth, nullptr, 1, counters, estimates.data());
                 for (size_t k = 0; k < starts.size(); ++k) {
@@ -108,8 +127,10 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
                     if (n == 0) continue;
                     TrainingSample t;
                     t.position = starts[k].p;
-                    t.normal = t.wo = starts[k].ns;
+                    t.normal = starts[k].ns;
+                    t.wo = starts[k].wo;
                     t.radiance = glm::vec3(sum / double(n));
+                    if (glossy) t.radiance /= eval::glossyAlbedo(glm::dot(t.normal, t.wo));
                     t.voxel = uint32_t(c);
                     t.reflectance = glm::vec3(1.0f);
                     byCell[c].push_back(t);

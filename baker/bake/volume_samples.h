@@ -20,6 +20,9 @@ struct VolumeSettings {
     bool enabled = false;  // nrad bake --volume-points N (N > 0)
     uint32_t pointsPerCell = 1000;  // tried in each cell's box (those inside a closed solid are dropped)
     uint32_t paths = 32;  // per point
+    // Also the glossy response (nrad bake --volume-glossy): networks of the same cells for the radiance a GGX
+    // receiver of roughness eval::kGlossyRoughness and Fresnel 1 reflects towards a viewer, over eval::glossyAlbedo.
+    bool glossy = false;
 };
 
 struct VolumeStats {
@@ -33,11 +36,18 @@ struct VolumeStats {
 // solid, or behind a surface lying on another); each with a uniform random unit normal, its target E(x, n) / pi
 // from `paths` paths of the tracer (next event estimation and BSDF sampling of a white Lambertian receiver, cut at
 // maxDepth segments: 0 unbounded), `voxel` its cell, reflectance 1. Deterministic for a seed, whatever the threads.
+// glossy: the glossy response's samples instead (eval.h's glossy query): the same points tried (another normal), each
+// with a direction v towards a viewer uniform over the hemisphere of its normal (TrainingSample::wo), its target
+// the radiance the GGX receiver (glossyReceiverAt) reflects towards v over eval::glossyAlbedo(n.v).
 std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, const eval::Partition& partition,
-                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats);
+                                                  const VolumeSettings& settings, uint32_t seed, int maxDepth, VolumeStats& stats,
+                                                  bool glossy = false);
 
 // The interaction of a white Lambertian receiver at p facing n (a plane through p that is in no scene): the start
 // of its paths.
 SurfaceInteraction receiverAt(const glm::vec3& p, const glm::vec3& n);
+
+// A white metallic GGX receiver of roughness eval::kGlossyRoughness (Fresnel 1) at p facing n, seen from v.
+SurfaceInteraction glossyReceiverAt(const glm::vec3& p, const glm::vec3& n, const glm::vec3& v);
 
 }  // namespace nrad

@@ -95,6 +95,7 @@ struct BakeOptions {
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
     uint32_t volumePoints = 0, volumePaths = defaults().volume.paths;  // 0 points: no volume networks
+    bool volumeGlossy = false;
     bool noMetadata = !defaults().metadata, noDemodulate = !defaults().train.demodulate, noWallSplits = !defaults().walls.enabled;
     LightingOptions lighting = bakeLighting();
     std::string training = trainingMethodName(defaults().training);
@@ -244,6 +245,9 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
           "Also bake the light in the volume for receivers not in the bake (moving objects): points tried per cell "
           "(about 1000); 0: none");
     t.add("--volume-paths", &o.volumePaths, "With --volume-points: paths per volume point");
+    t.add("--volume-glossy", &o.volumeGlossy,
+          "With --volume-points: also the volume's glossy response (what a glossy receiver reflects towards a viewer; "
+          "docs/usage.md), networks of the same cells");
     t.add("--no-metadata", &o.noMetadata, "Leave out the asset's JSON metadata section");
     t.add("--no-wall-splits", &o.noWallSplits,
           "Without --budget: keep the grid's cells whole where a wall divides one (by default such a cell is split at the "
@@ -352,13 +356,14 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.volume.enabled = o.volumePoints > 0;
     s.volume.pointsPerCell = o.volumePoints;
     s.volume.paths = o.volumePaths;
+    s.volume.glossy = o.volumeGlossy;  // like --volume-paths, nothing without --volume-points
     if (s.volume.enabled && (o.volumePaths == 0 || o.volumePaths > 4096)) return usage("--volume-paths: expected 1 to 4096");
     if (s.volume.enabled && o.volumePoints > 1000000) return usage("--volume-points: expected at most 1000000");
     if (s.volume.enabled && s.partition.budgetBytes > 0) {  // the smallest asset has a volume network too
-        const uint64_t smallest = format::encodedSize(bakeTopology(s), 1, 1, 0, 1);
+        const uint64_t smallest = format::encodedSize(bakeTopology(s), 1, 1, 0, 1, s.volume.glossy ? 1 : 0);
         if (s.partition.budgetBytes < smallest)
-            return usage("--budget " + o.budget + " with --volume-points: below the smallest asset of one network and one of the volume (" +
-                         std::to_string(smallest) + " bytes)");
+            return usage("--budget " + o.budget + " with --volume-points: below the smallest asset of one network and " +
+                         (s.volume.glossy ? "two of the volume (" : "one of the volume (") + std::to_string(smallest) + " bytes)");
     }
     s.train.demodulate = !o.noDemodulate;
     s.walls.enabled = !o.noWallSplits;
@@ -526,15 +531,24 @@ void printRoundsAndPartition(const BakeSettings& s, const BakeResult& r, size_t 
 // The volume's networks (--volume-points), a line.
 void printVolume(const BakeResult& r) {
     if (r.volumeStats.tried == 0) return;
-    double mean = 0.0, worst = 0.0;
-    for (const VoxelTrainResult& v : r.volume) {
-        mean += v.heldOutRelMse / double(r.volume.size());
-        worst = std::max(worst, v.heldOutRelMse);
-    }
+    auto heldOut = [](const std::vector<VoxelTrainResult>& networks, double& mean, double& worst) {
+        mean = worst = 0.0;
+        for (const VoxelTrainResult& v : networks) {
+            mean += v.heldOutRelMse / double(networks.size());
+            worst = std::max(worst, v.heldOutRelMse);
+        }
+    };
+    double mean, worst;
+    heldOut(r.volume, mean, worst);
     std::printf("volume: %zu networks of the light for receivers not in the bake, from %llu points tried in the cells (%llu "
-                "inside closed solids, dropped), held-out relMSE mean %.4g worst %.4g; %.2f s\n",
-                r.volume.size(), (unsigned long long)r.volumeStats.tried, (unsigned long long)r.volumeStats.inside, mean, worst,
-                r.timings.volume);
+                "inside closed solids, dropped), held-out relMSE mean %.4g worst %.4g",
+                r.volume.size(), (unsigned long long)r.volumeStats.tried, (unsigned long long)r.volumeStats.inside, mean, worst);
+    if (!r.glossy.empty()) {
+        heldOut(r.glossy, mean, worst);
+        std::printf("; glossy response (roughness %.1f): %zu networks, held-out relMSE mean %.4g worst %.4g", double(eval::kGlossyRoughness),
+                    r.glossy.size(), mean, worst);
+    }
+    std::printf("; %.2f s\n", r.timings.volume);
 }
 
 // --stats: the kd-tree and its leaves.
@@ -619,12 +633,16 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     j["config"] = bakeSettingsTable(given).json();  // a --config file that repeats this bake
     j["voxels"] = voxelStats(r);
     if (s.volume.enabled) {
-        nlohmann::json cells = nlohmann::json::array();
-        for (const VoxelTrainResult& v : r.volume)
-            cells.push_back({{"cell", v.voxel}, {"samples", v.trainCount + v.heldOutCount}, {"held_out_relmse", v.heldOutRelMse},
-                             {"train_relmse", v.trainRelMse}, {"scale", v.scale}});
+        auto networks = [](const std::vector<VoxelTrainResult>& list) {
+            nlohmann::json cells = nlohmann::json::array();
+            for (const VoxelTrainResult& v : list)
+                cells.push_back({{"cell", v.voxel}, {"samples", v.trainCount + v.heldOutCount}, {"held_out_relmse", v.heldOutRelMse},
+                                 {"train_relmse", v.trainRelMse}, {"scale", v.scale}});
+            return cells;
+        };
         j["volume"] = {{"points_tried", r.volumeStats.tried}, {"points_inside_solids", r.volumeStats.inside},
-                       {"rays", r.volumeStats.rays}, {"seconds", r.timings.volume}, {"networks", cells}};
+                       {"rays", r.volumeStats.rays + r.glossyStats.rays}, {"seconds", r.timings.volume}, {"networks", networks(r.volume)}};
+        if (s.volume.glossy) j["volume"]["glossy_networks"] = networks(r.glossy);
     }
     try {
         writeTextAtomically(o.stats, j.dump(1) + "\n");

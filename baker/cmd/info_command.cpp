@@ -5,6 +5,7 @@
 #include <string>
 
 #include <nlohmann/json.hpp>
+#include <nrad/eval.h>
 #include <nrad/format.h>
 
 #include "baker/cmd/commands.h"
@@ -68,6 +69,11 @@ int runInfo(const std::string& path) {
                     (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.volumeVoxels.size()));
     else
         std::printf("volume: none (only the baked surfaces answer; bake --volume-points for moving objects)\n");
+    if (!a.glossyVoxels.empty())
+        std::printf("volume, glossy response: %zu cells with a network of what a receiver of roughness %.1f reflects towards a "
+                    "viewer (%llu bytes)\n",
+                    a.glossyVoxels.size(), double(eval::kGlossyRoughness),
+                    (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.glossyVoxels.size()));
     if (a.header.flags & format::kFlagBlended)
         std::printf("blending: neighbouring networks blended within %g voxels of every interior face (no seams)\n", a.grid.blendBand);
     else

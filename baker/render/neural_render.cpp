@@ -28,12 +28,17 @@ NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset 
         volume = [asset](size_t n, const float* p, const float* nrm, float* rgb, uint8_t* flags) {
             return nradEvaluateVolumeBatch(asset, n, p, nrm, rgb, flags);
         };
-    return renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, settings, image, stats, progress, volume);
+    GlossyEvaluator glossy;
+    if (volume && info.glossyNetworks > 0)
+        glossy = [asset](size_t n, const float* p, const float* nrm, const float* d, float* rgb, uint8_t* flags) {
+            return nradEvaluateVolumeGlossyBatch(asset, n, p, nrm, d, rgb, flags);
+        };
+    return renderFirstHit(scene, accel, evaluate, info.contentFlags, camera, settings, image, stats, progress, volume, glossy);
 }
 
 NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
                           const Camera& camera, const RenderSettings& settings, Image& image, NeuralRenderStats* stats,
-                          const std::function<void(double)>& progress, const VolumeEvaluator& volume) {
+                          const std::function<void(double)>& progress, const VolumeEvaluator& volume, const GlossyEvaluator& glossy) {
     using clock = std::chrono::steady_clock;
     auto start = clock::now();
     image = Image(settings.width, settings.height);
@@ -52,7 +57,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
         std::vector<uint8_t> flags;
         std::vector<uint32_t> pixelOf;  // batch entry -> pixel index within the tile
         // The inserted objects' hits (with `volume`): their points, normals, surfaces, cosines and pixels.
-        std::vector<float> vpos, vnrm, vrgb, vcos;
+        std::vector<float> vpos, vnrm, vdir, vrgb, vglossy, vcos;
         std::vector<eval::Surface> vsurfaces;
         std::vector<uint8_t> vflags;
         std::vector<uint32_t> vpixelOf;
@@ -74,6 +79,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             direct.clear();
             vpos.clear();
             vnrm.clear();
+            vdir.clear();
             vcos.clear();
             vsurfaces.clear();
             vpixelOf.clear();
@@ -95,6 +101,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
                             for (int k = 0; k < 3; ++k) {
                                 vpos.push_back(si.p[k]);
                                 vnrm.push_back(si.ns[k]);
+                                vdir.push_back(si.wo[k]);
                             }
                             vsurfaces.push_back(shadingSurface(si));
                             vcos.push_back(glm::dot(si.ns, si.wo));
@@ -122,11 +129,16 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             vrgb.assign(3 * vn, 0.0f);
             vflags.assign(vn, 0);
             if (vn > 0 && st == NRAD_OK) st = volume(vn, vpos.data(), vnrm.data(), vrgb.data(), vflags.data());
+            vglossy.assign(glossy ? 3 * vn : 0, 0.0f);
+            if (glossy && vn > 0 && st == NRAD_OK) st = glossy(vn, vpos.data(), vnrm.data(), vdir.data(), vglossy.data(), vflags.data());
             auto t2 = clock::now();
             if (st != NRAD_OK) failure = st;
             for (size_t i = 0; i < vn; ++i) {
                 float L[3];
-                eval::shadeVolume(&vrgb[3 * i], vsurfaces[i], vcos[i], L);
+                if (glossy)
+                    eval::shadeVolumeGlossy(&vrgb[3 * i], &vglossy[3 * i], vsurfaces[i], vcos[i], L);
+                else
+                    eval::shadeVolume(&vrgb[3 * i], vsurfaces[i], vcos[i], L);
                 sum[vpixelOf[i]] += glm::dvec3(L[0], L[1], L[2]);
                 if (mixed) sum[vpixelOf[i]] += glm::dvec3(vdirect[i]);
                 local.outsideGrid += vflags[i] == NRAD_POINT_OUTSIDE_GRID;

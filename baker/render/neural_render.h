@@ -32,18 +32,25 @@ using FirstHitEvaluator = std::function<NradStatus(size_t count, const float* po
 using VolumeEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals, float* rgb,
                                                  uint8_t* flags)>;
 
+// The volume's glossy response at such receivers (nrad/eval.h's glossy query): positions, shading normals and
+// directions towards the camera -> the prefiltered light (rgb interleaved) and a per-point flag.
+using GlossyEvaluator = std::function<NradStatus(size_t count, const float* positions, const float* normals, const float* directions,
+                                                 float* rgb, uint8_t* flags)>;
+
 // Renders with primary visibility only, radiance at the first hit from `evaluate`, shaded by the contract of
 // nrad/eval.h (contentFlags: format::kFlag*; with kFlagScatteredRadiance the hit's own emission towards the
 // camera is added): tile by tile, each tile's hits in one batch. The same sample positions as
 // renderThroughAsset, so any two evaluators render the same hits. With `volume`, hits on inserted objects are
-// shaded from it by eval::shadeVolume (one more batch per tile); without, like the bake's surfaces.
+// shaded from it by eval::shadeVolume (one more batch per tile), and with `glossy` too by eval::shadeVolumeGlossy
+// (another); without, like the bake's surfaces.
 NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHitEvaluator& evaluate, uint32_t contentFlags,
                           const Camera& camera, const RenderSettings& settings, Image& image,
                           NeuralRenderStats* stats = nullptr, const std::function<void(double)>& progress = {},
-                          const VolumeEvaluator& volume = {});
+                          const VolumeEvaluator& volume = {}, const GlossyEvaluator& glossy = {});
 
 // The asset's contentFlags decide the shading; inserted objects are shaded through its volume query
-// (nradEvaluateVolumeBatch) when it has volume networks. Fails with the runtime's status if evaluation fails.
+// (nradEvaluateVolumeBatch) when it has volume networks, and its glossy response (nradEvaluateVolumeGlossyBatch)
+// when it has that too. Fails with the runtime's status if evaluation fails.
 NradStatus renderThroughAsset(const Scene& scene, const Accel& accel, NradAsset asset, const Camera& camera,
                               const RenderSettings& settings, Image& image, NeuralRenderStats* stats = nullptr,
                               const std::function<void(double)>& progress = {});

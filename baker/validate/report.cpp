@@ -295,7 +295,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
             }
             objects.push_back(o);
         }
-        j["inserted"] = {{"objects", objects}, {"through", r.insertedThroughVolume ? "volume query" : "surface networks"},
+        j["inserted"] = {{"objects", objects}, {"through", r.insertedThroughGlossy ? "volume query and glossy response" : r.insertedThroughVolume ? "volume query" : "surface networks"},
                          {"volume_bytes", r.volumeBytes}, {"exact_volume_light_paths_per_pixel", r.exactPaths}};
         if (r.baseline)
             j["inserted"]["baseline"] = {{"kind", "L2 SH irradiance probes"},
@@ -589,7 +589,9 @@ void htmlBakeAndEnd(std::ostringstream& h, const nlohmann::json* b) {
 // The objects placed after the bake: their interior pixels' error, the asset's volume query against the probes.
 static void htmlInserted(std::ostringstream& h, const ValidationResult& r) {
     h << "<h2>Inserted objects</h2>\n<p>Objects that were not in the bake, shaded through the asset's "
-      << (r.insertedThroughVolume ? "volume query" : "surface networks (it has no volume networks: an extrapolation)");
+      << (r.insertedThroughGlossy    ? "volume query and glossy response"
+          : r.insertedThroughVolume ? "volume query"
+                                    : "surface networks (it has no volume networks: an extrapolation)");
     if (r.baseline)
         h << ", against " << r.irradianceProbes.x << "x" << r.irradianceProbes.y << "x" << r.irradianceProbes.z
           << " L2 SH irradiance probes of the volume's bytes";

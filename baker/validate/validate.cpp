@@ -760,9 +760,10 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
     renderBaseline(v, probes, &irradiance, info, fh);
 }
 
-// The exact volume quantity on the inserted objects (InsertedFigure): D(x, n) traced in the scene without them at
-// the centres of the pixels where `use` is set, shaded as the asset's query is; the other pixels 0.
-Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32_t paths) {
+// The exact volume quantity on the inserted objects (InsertedFigure): D(x, n) (and with `glossy` the glossy response
+// towards the camera) traced in the scene without them at the centres of the pixels where `use` is set, shaded as
+// the asset's queries are; the other pixels 0.
+Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32_t paths, bool glossy) {
     PathTracer tracer(v.baked, v.bakedAccel, v.bakedLights);
     tracer.setRouletteThreshold(kTrainingRouletteThreshold);
     const int w = v.r.width, h = v.r.height;
@@ -781,18 +782,27 @@ Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32
                 const Hit hit = v.accel.intersect(o, d);
                 if (!hit.valid()) continue;
                 const SurfaceInteraction si = makeInteraction(v.scene, hit, d);
-                const SurfaceInteraction receiver = receiverAt(si.p, si.ns);
-                batch.clear();
-                for (uint32_t j = 0; j < paths; ++j) batch.push_back({&receiver, uint32_t(i * 0x9e3779b1u) ^ 0x6578616du, j});
-                tracer.estimate(batch.data(), batch.size(), v.rs.maxDepth, nullptr, 1, counters, estimates.data());
-                glm::dvec3 sum(0.0);
-                uint32_t n = 0;
-                for (const glm::vec3& L : estimates)
-                    if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += glm::dvec3(L), ++n;
-                const glm::vec3 D = n ? glm::vec3(sum / double(n)) : glm::vec3(0.0f);
+                auto traced = [&](const SurfaceInteraction& receiver, uint32_t salt) {
+                    batch.clear();
+                    for (uint32_t j = 0; j < paths; ++j) batch.push_back({&receiver, uint32_t(i * 0x9e3779b1u) ^ salt, j});
+                    tracer.estimate(batch.data(), batch.size(), v.rs.maxDepth, nullptr, 1, counters, estimates.data());
+                    glm::dvec3 sum(0.0);
+                    uint32_t n = 0;
+                    for (const glm::vec3& L : estimates)
+                        if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z)) sum += glm::dvec3(L), ++n;
+                    return n ? glm::vec3(sum / double(n)) : glm::vec3(0.0f);
+                };
+                const glm::vec3 D = traced(receiverAt(si.p, si.ns), 0x6578616du);
                 const float Dv[3] = {D.x, D.y, D.z};
+                const float cosNV = glm::dot(si.ns, si.wo);
                 float L[3];
-                eval::shadeVolume(Dv, shadingSurface(si), glm::dot(si.ns, si.wo), L);
+                if (glossy) {
+                    const glm::vec3 G = traced(glossyReceiverAt(si.p, si.ns, si.wo), 0x676c6f73u) / eval::glossyAlbedo(cosNV);
+                    const float Gv[3] = {G.x, G.y, G.z};
+                    eval::shadeVolumeGlossy(Dv, Gv, shadingSurface(si), cosNV, L);
+                } else {
+                    eval::shadeVolume(Dv, shadingSurface(si), cosNV, L);
+                }
                 out.at(x, y) = glm::vec3(L[0], L[1], L[2]);
             }
     });
@@ -800,7 +810,7 @@ Image exactVolumeImage(ValidationRun& v, const std::vector<uint8_t>& use, uint32
 }
 
 // The inserted objects' figures (InsertedFigure): each object's interior pixels, then all of them together.
-void measureInserted(ValidationRun& v, const FirstHits& hits) {
+void measureInserted(ValidationRun& v, const FirstHits& hits, bool glossy) {
     ValidationResult& r = v.r;
     const size_t objects = v.scene.insertedObjects.size();
     const int w = hits.width, h = hits.height;
@@ -820,7 +830,7 @@ void measureInserted(ValidationRun& v, const FirstHits& hits) {
         }
     // The exact quantity's paths: 1024 per pixel, fewer where the objects cover many (4 M paths in all at most).
     r.exactPaths = uint32_t(std::clamp<size_t>(exactCount ? (size_t(1) << 22) / exactCount : 1024, 64, 1024));
-    const Image exact = exactVolumeImage(v, exactAt, r.exactPaths);
+    const Image exact = exactVolumeImage(v, exactAt, r.exactPaths, glossy);
     // Per object, then all together: sums of relMSE and luminance over the interior pixels (against the reference)
     // and over those of them with the exact light (against the reference, and the asset and probes against it).
     struct Sums {
@@ -921,6 +931,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     fh.seed = settings.seed;
     r.volumeBytes = size_t(info.volumeNetworks) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
     r.insertedThroughVolume = info.volumeNetworks > 0 && !scene.insertedObjects.empty();
+    r.insertedThroughGlossy = r.insertedThroughVolume && info.glossyNetworks > 0;
     if (!scene.insertedObjects.empty() && info.volumeNetworks == 0)
         v.say("inserted objects: the asset has no volume networks (bake with --volume-points): they are shaded by the surfaces' networks, "
               "an extrapolation nobody trained");
@@ -928,7 +939,7 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     readMetadataAndBias(v, asset);
 
     if (settings.baseline) runBaseline(v, info, fh);
-    if (!scene.insertedObjects.empty()) measureInserted(v, hits);
+    if (!scene.insertedObjects.empty()) measureInserted(v, hits, info.glossyNetworks > 0);
     return r;
 }
 

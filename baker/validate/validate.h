@@ -183,6 +183,7 @@ struct ValidationResult {
     // with the baseline. How the asset shaded them: its volume query, or (an asset without one) its surfaces'.
     std::vector<InsertedFigure> inserted;
     bool insertedThroughVolume = false;
+    bool insertedThroughGlossy = false;  // ... and its glossy response
     size_t volumeBytes = 0;  // the asset's volume networks' weights
     glm::uvec3 irradianceProbes{0};  // the baseline's irradiance probes (inserted objects only)
     ShIrradianceStats irradianceFit;

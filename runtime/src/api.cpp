@@ -130,6 +130,12 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
                              a->volume->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
                              a->volume->denseLookup.size() * sizeof(int32_t) + a->volume->partition.bytes();
         }
+        if (a->glossy) {
+            r.glossyNetworks = uint32_t(a->glossy->asset.voxels.size());
+            r.memoryBytes += sizeof(NradAsset_) + a->glossy->asset.weights.size() * sizeof(float) +
+                             a->glossy->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
+                             a->glossy->denseLookup.size() * sizeof(int32_t) + a->glossy->partition.bytes();
+        }
         *info = r;
         return NRAD_OK;
     });
@@ -181,6 +187,17 @@ NradStatus nradEvaluateVolumeBatch(NradAsset a, size_t count, const float* posit
         rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
                       {normals, normals + 1, normals + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
         return rt::evaluateBatch(*a->volume, count, v);
+    });
+}
+
+NradStatus nradEvaluateVolumeGlossyBatch(NradAsset a, size_t count, const float* positions, const float* normals,
+                                         const float* viewDirections, float* rgb, uint8_t* pointFlags) {
+    if (!a || !a->glossy || (count > 0 && (!positions || !normals || !viewDirections || !rgb))) return NRAD_ERROR_INVALID_ARGUMENT;
+    if (count == 0) return NRAD_OK;
+    return guarded([&] {
+        rt::BatchIo v{{positions, positions + 1, positions + 2}, {normals, normals + 1, normals + 2},
+                      {viewDirections, viewDirections + 1, viewDirections + 2}, {rgb, rgb + 1, rgb + 2}, 3, pointFlags, nullptr};
+        return rt::evaluateBatch(*a->glossy, count, v);
     });
 }
 
@@ -277,6 +294,7 @@ NradStatus nradSetAssetKernel(NradAsset a, NradKernel kernel) {
     if (kernel != NRAD_KERNEL_AUTO && !rt::kernelSupported(kernel)) return NRAD_ERROR_UNSUPPORTED_KERNEL;
     a->kernel.store(kernel, std::memory_order_relaxed);
     if (a->volume) a->volume->kernel.store(kernel, std::memory_order_relaxed);
+    if (a->glossy) a->glossy->kernel.store(kernel, std::memory_order_relaxed);
     return NRAD_OK;
 }
 

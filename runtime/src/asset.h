@@ -31,4 +31,5 @@ struct NradAsset_ {
     // The volume's networks (VVOX, VWGT) as an asset of their own (the same cells, topology and tables, no
     // metadata): what nradEvaluateVolumeBatch evaluates with the normal as the direction. Null: none.
     std::unique_ptr<NradAsset_> volume;
+    std::unique_ptr<NradAsset_> glossy;  // the volume's glossy response (VGLX, VGLW) likewise; null: none
 };

@@ -188,19 +188,23 @@ NradStatus loadAsset(const void* data, size_t size, uint32_t flags, NradAsset* o
         }
         std::string().swap(a->asset.metadata);
     }
-    if (!a->asset.volumeVoxels.empty()) {  // the volume's networks: an asset of the same cells
-        a->volume = std::make_unique<NradAsset_>();
-        format::Asset& v = a->volume->asset;
+    // The volume's networks and its glossy response: each an asset of the same cells.
+    auto cellsAsset = [&](std::vector<format::VoxelEntry>& voxels, std::vector<float>& weights) {
+        auto sub = std::make_unique<NradAsset_>();
+        format::Asset& v = sub->asset;
         v.header = a->asset.header;
         v.grid = a->asset.grid;
         v.topology = a->asset.topology;
         v.tree = a->asset.tree;
         v.leafCount = a->asset.leafCount;
-        v.voxels.swap(a->asset.volumeVoxels);
-        v.weights.swap(a->asset.volumeWeights);
-        a->volume->paramsPerNetwork = a->paramsPerNetwork;
-        prepareTables(*a->volume);
-    }
+        v.voxels.swap(voxels);
+        v.weights.swap(weights);
+        sub->paramsPerNetwork = a->paramsPerNetwork;
+        prepareTables(*sub);
+        return sub;
+    };
+    if (!a->asset.volumeVoxels.empty()) a->volume = cellsAsset(a->asset.volumeVoxels, a->asset.volumeWeights);
+    if (!a->asset.glossyVoxels.empty()) a->glossy = cellsAsset(a->asset.glossyVoxels, a->asset.glossyWeights);
     prepareTables(*a);
     *out = a;
     writeMessage(message, messageSize, "ok");

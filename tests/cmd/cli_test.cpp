@@ -246,7 +246,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
         "generation_paths": 4, "generation_epochs": 2, "generation_lr": "0.02,0.001", "average_decay": 0.5,
         "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "race_epochs": 50, "epoch_average": 0.5,
         "blend_band": 0.125,
-        "budget": "64K", "levels": 5, "min_leaf_samples": 64, "volume_points": 300, "volume_paths": 8, "seed": 7, "max_texture_pixels": 1000, "max_triangles": 1000,
+        "budget": "64K", "levels": 5, "min_leaf_samples": 64, "volume_points": 300, "volume_paths": 8, "volume_glossy": true, "seed": 7, "max_texture_pixels": 1000, "max_triangles": 1000,
         "metadata": false, "wall_splits": false, "demodulate": false, "environment": "0.5,0.5,0.5",
         "environment_intensity": 2, "environment_rotation": 90, "sun": "0,1,0", "sun_illuminance": 5000, "sun_angle": 0.53,
         "runtime_direct": "none"})");
@@ -268,7 +268,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
     for (const auto& [key, example] : examples.items()) {
         std::string flag = "--" + key;
         for (char& c : flag) c = c == '_' ? '-' : c;
-        if (example.is_boolean()) flag = "--no-" + flag.substr(2);  // every flag of the table turns a default off
+        if (example.is_boolean() && !example.get<bool>()) flag = "--no-" + flag.substr(2);  // a flag that turns a default off
         tableFlags.insert(flag);
         const nlohmann::json byFlag = dumpedConfig(example.is_boolean() ? flag : flag + " " + (example.is_string() ? example.get<std::string>() : example.dump()));
         std::ofstream(dir + "/one.json") << nlohmann::json{{key, example}}.dump();

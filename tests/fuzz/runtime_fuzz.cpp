@@ -188,6 +188,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         } else if (nradEvaluateVolumeBatch(asset, n, p.data(), nrm.data(), rgb.data(), pf.data()) != NRAD_ERROR_INVALID_ARGUMENT) {
             std::abort();
         }
+        if (info.glossyNetworks > 0) {  // and its glossy response
+            if (nradEvaluateVolumeGlossyBatch(asset, n, p.data(), nrm.data(), dir.data(), rgb.data(), pf.data()) != NRAD_OK) std::abort();
+            for (float v : rgb)
+                if (!std::isfinite(v) || v < 0.0f) std::abort();
+        } else if (nradEvaluateVolumeGlossyBatch(asset, n, p.data(), nrm.data(), dir.data(), rgb.data(), pf.data()) !=
+                   NRAD_ERROR_INVALID_ARGUMENT) {
+            std::abort();
+        }
         nradEvaluateBatch(asset, n, p.data(), nrm.data(), dir.data(), rgb.data(), pf.data());
         for (float v : rgb)
             if (!std::isfinite(v) || v < 0.0f) std::abort();

@@ -148,6 +148,36 @@ void expectVolumeQueryAgreesWithTheBaker(const Scene& scene, BakeSettings s) {
     nradSelectKernel(NRAD_KERNEL_AUTO);
     std::printf("volume query: worst relative difference %.3g\n", worst);
     EXPECT_LT(worst, 1e-4);  // the same fp16-decoded weights on both sides: only the order of the sums differs
+    // The glossy response, where baked: at the same points and normals, seen from directions in their hemispheres.
+    EXPECT_EQ(info.glossyNetworks, decoded.glossyVoxels.size());
+    if (!decoded.glossyVoxels.empty()) {
+        const test::VolumeQuery glossy(decoded, true);
+        std::vector<float> views(3 * n);
+        for (size_t i = 0; i < n; ++i) {
+            glm::vec3 v = glm::normalize(glm::vec3(rng.uniform() - 0.5f, rng.uniform() - 0.5f, rng.uniform() - 0.5f) + glm::vec3(1e-3f, 0.0f, 0.0f));
+            if (glm::dot(v, glm::vec3(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2])) < 0.0f) v = -v;
+            for (int k = 0; k < 3; ++k) views[3 * i + size_t(k)] = v[k];
+        }
+        double worstGlossy = 0.0;
+        for (NradKernel k : kernels()) {
+            nradSelectKernel(k);
+            ASSERT_EQ(nradEvaluateVolumeGlossyBatch(asset.get(), n, positions.data(), normals.data(), views.data(), rgb.data(), nullptr), NRAD_OK);
+            for (size_t i = 0; i < n; ++i) {
+                const glm::vec3 expected = glossy(glm::vec3(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]),
+                                                  glm::vec3(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]),
+                                                  glm::vec3(views[3 * i], views[3 * i + 1], views[3 * i + 2]));
+                for (int c = 0; c < 3; ++c)
+                    worstGlossy = std::max(worstGlossy, double(std::abs(rgb[3 * i + size_t(c)] - expected[c])) /
+                                                            std::max(std::abs(expected[c]), glossy.largestScale()));
+            }
+        }
+        nradSelectKernel(NRAD_KERNEL_AUTO);
+        std::printf("glossy query: worst relative difference %.3g\n", worstGlossy);
+        EXPECT_LT(worstGlossy, 1e-4);
+    } else {
+        EXPECT_EQ(nradEvaluateVolumeGlossyBatch(asset.get(), n, positions.data(), normals.data(), normals.data(), rgb.data(), nullptr),
+                  NRAD_ERROR_INVALID_ARGUMENT);
+    }
     // An asset without volume networks has no volume query.
     s.volume.enabled = false;
     const std::vector<uint8_t> plain = format::encode(bakeScene(scene, s).asset);
@@ -166,8 +196,9 @@ TEST(Runtime, VolumeQueryAgreesWithTheBaker) {
     s.volume.pointsPerCell = 200;
     s.volume.paths = 4;
     expectVolumeQueryAgreesWithTheBaker(scene, s);
-    s.partition.budgetBytes = 8 * 1024;  // the cells a kd-tree's leaves
+    s.partition.budgetBytes = 8 * 1024;  // the cells a kd-tree's leaves, with the glossy response
     s.partition.minLeafSamples = 64;
+    s.volume.glossy = true;
     expectVolumeQueryAgreesWithTheBaker(scene, s);
 }
 

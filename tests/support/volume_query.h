@@ -12,20 +12,23 @@
 
 namespace nrad::test {
 
-// The volume networks of `a` (its weights as decoded or as baked) at (p, n): E(x, n) / pi.
+// The volume networks of `a` (its weights as decoded or as baked) at (p, n): E(x, n) / pi; with `glossy` its glossy
+// response's at (p, n, v).
 class VolumeQuery {
 public:
-    explicit VolumeQuery(const format::Asset& a)
+    explicit VolumeQuery(const format::Asset& a, bool glossy = false)
         : partition_(a), field_(partition_, a.topology, a.topology.outputTransform, false) {
         const size_t per = a.topology.parameterCount();
-        for (size_t k = 0; k < a.volumeVoxels.size(); ++k) {
-            field_.set(a.volumeVoxels[k].index, std::vector<float>(a.volumeWeights.begin() + ptrdiff_t(k * per),
-                                                                   a.volumeWeights.begin() + ptrdiff_t((k + 1) * per)),
-                       a.volumeVoxels[k].scale);
-            largestScale_ = std::max(largestScale_, a.volumeVoxels[k].scale);
+        const std::vector<format::VoxelEntry>& voxels = glossy ? a.glossyVoxels : a.volumeVoxels;
+        const std::vector<float>& weights = glossy ? a.glossyWeights : a.volumeWeights;
+        for (size_t k = 0; k < voxels.size(); ++k) {
+            field_.set(voxels[k].index, std::vector<float>(weights.begin() + ptrdiff_t(k * per), weights.begin() + ptrdiff_t((k + 1) * per)),
+                       voxels[k].scale);
+            largestScale_ = std::max(largestScale_, voxels[k].scale);
         }
     }
     glm::vec3 operator()(const glm::vec3& p, const glm::vec3& n) const { return field_.assetRadiance(p, n, n); }
+    glm::vec3 operator()(const glm::vec3& p, const glm::vec3& n, const glm::vec3& v) const { return field_.assetRadiance(p, n, v); }
     float largestScale() const { return largestScale_; }
 
 private:

@@ -547,15 +547,22 @@ struct Surface {
 // with F0 = 0.04 specular (1 - metallic) + baseColor metallic, w = specular (1 - metallic) + metallic, and
 // (A, B) Karis's fit of the GGX split-sum terms over roughness and n.wo ("Physically Based Shading on
 // Mobile", 2014). A demodulation factor both sides agree on, not the BSDF's exact albedo; about 0 to 1.1.
-inline void reflectance(const Surface& s, float cosNV, float out[3]) {
+// Karis's split-sum terms (A, B) for roughness `rough` in [0, 1] and n.wo (clamped to [0, 1] here).
+inline void splitSumTerms(float rough, float cosNV, float& A, float& B) {
     const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
-    const float rough = s.roughness < 0.0f ? 0.0f : (s.roughness > 1.0f ? 1.0f : s.roughness);
-    const float m = s.metallic < 0.0f ? 0.0f : (s.metallic > 1.0f ? 1.0f : s.metallic);
     const float nv = cosNV > 0.0f ? (cosNV < 1.0f ? cosNV : 1.0f) : 0.0f;
     float r[4];
     for (int i = 0; i < 4; ++i) r[i] = rough * c0[i] + c1[i];
     const float a004 = std::fmin(r[0] * r[0], exp2Poly(-9.28f * nv)) * r[0] + r[1];
-    const float A = std::fmax(0.0f, -1.04f * a004 + r[2]), B = std::fmax(0.0f, 1.04f * a004 + r[3]);
+    A = std::fmax(0.0f, -1.04f * a004 + r[2]);
+    B = std::fmax(0.0f, 1.04f * a004 + r[3]);
+}
+
+inline void reflectance(const Surface& s, float cosNV, float out[3]) {
+    const float rough = s.roughness < 0.0f ? 0.0f : (s.roughness > 1.0f ? 1.0f : s.roughness);
+    const float m = s.metallic < 0.0f ? 0.0f : (s.metallic > 1.0f ? 1.0f : s.metallic);
+    float A, B;
+    splitSumTerms(rough, cosNV, A, B);
     const float w = s.specular * (1.0f - m) + m;
     for (int c = 0; c < 3; ++c) {
         const float base = s.baseColor[c] > 0.0f ? (s.baseColor[c] < 1.0f ? s.baseColor[c] : 1.0f) : 0.0f;
@@ -590,6 +597,44 @@ inline void shadeVolume(const float volumeRadiance[3], const Surface& surface, f
     float r[3];
     reflectance(surface, cosNV, r);
     for (int c = 0; c < 3; ++c) out[c] = r[c] * volumeRadiance[c] + surface.emission[c];
+}
+
+// ----- the volume's glossy response (format 2.5, VGLX/VGLW) ---------------------------------------------------
+
+// The glossy query: for x, a unit normal n and the unit direction v towards the viewer, the radiance a GGX receiver
+// of roughness kGlossyRoughness (perceptual), white and metallic (Fresnel 1), at x facing n reflects towards v,
+// divided by glossyAlbedo(n.v): the light arriving at x prefiltered by that lobe. The volume query's contract with
+// the glossy cells and networks and encodeInputs(local, n, v).
+constexpr float kGlossyRoughness = 0.3f;
+
+// What the glossy response is divided by: the split-sum albedo of the lobe (F0 = 1, so A + B) at n.v.
+inline float glossyAlbedo(float cosNV) {
+    float A, B;
+    splitSumTerms(kGlossyRoughness, cosNV, A, B);
+    return A + B;
+}
+
+// A receiver that was not in the bake shaded from both volume queries: its diffuse albedo baseColor (1 - metallic)
+// times D = E / pi, plus its specular lobe's split-sum albedo (reflectance()'s F0 A + w B) times the prefiltered
+// light P, plus its emission. P is the glossy response at roughness <= kGlossyRoughness (its lobe's light: exact
+// at kGlossyRoughness, blurrier than a smoother lobe's), blended linearly in roughness to D at roughness 1 (where
+// shadeVolume's rule, the cosine-weighted mean, takes over): at roughness 1 this is shadeVolume.
+inline void shadeVolumeGlossy(const float volumeRadiance[3], const float glossyRadiance[3], const Surface& s, float cosNV,
+                              float out[3]) {
+    const float rough = s.roughness < 0.0f ? 0.0f : (s.roughness > 1.0f ? 1.0f : s.roughness);
+    const float m = s.metallic < 0.0f ? 0.0f : (s.metallic > 1.0f ? 1.0f : s.metallic);
+    float A, B;
+    splitSumTerms(rough, cosNV, A, B);
+    const float w = s.specular * (1.0f - m) + m;
+    const float t = rough > kGlossyRoughness ? (rough - kGlossyRoughness) / (1.0f - kGlossyRoughness) : 0.0f;
+    for (int c = 0; c < 3; ++c) {
+        const float base = s.baseColor[c] > 0.0f ? (s.baseColor[c] < 1.0f ? s.baseColor[c] : 1.0f) : 0.0f;
+        const float f0 = 0.04f * s.specular * (1.0f - m) + base * m;
+        const float specular = std::fmax(0.0f, f0 * A + w * B);
+        const float prefiltered = (1.0f - t) * glossyRadiance[c] + t * volumeRadiance[c];
+        const float v = base * (1.0f - m) * volumeRadiance[c] + specular * prefiltered;
+        out[c] = (v > 0.0f ? v : 0.0f) + s.emission[c];  // NaN to 0
+    }
 }
 
 

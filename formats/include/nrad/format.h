@@ -21,9 +21,9 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 4;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
+constexpr uint16_t kVersionMinor = 5;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
                                        // 2.2: the kd-tree partition (TREE), 2.3: planes no band crosses (TreeNode::hard),
-                                       // 2.4: the light in the volume (VVOX, VWGT)
+                                       // 2.4: the light in the volume (VVOX, VWGT), 2.5: its glossy response (VGLX, VGLW)
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
@@ -60,6 +60,8 @@ constexpr uint32_t kSectionMetadata = fourcc('M', 'E', 'T', 'A');
 constexpr uint32_t kSectionTree = fourcc('T', 'R', 'E', 'E');
 constexpr uint32_t kSectionVolumeVoxels = fourcc('V', 'V', 'O', 'X');
 constexpr uint32_t kSectionVolumeWeights = fourcc('V', 'W', 'G', 'T');
+constexpr uint32_t kSectionGlossyVoxels = fourcc('V', 'G', 'L', 'X');
+constexpr uint32_t kSectionGlossyWeights = fourcc('V', 'G', 'L', 'W');
 
 enum class Activation : uint32_t { ReLU = 1 };
 // How the last layer's value y becomes radiance: L = scale * max(0, y), or L = scale * (exp(y) - 1) for
@@ -129,6 +131,10 @@ struct Topology {  // TOPO: u32 inputs, u32 outputs, u32 hiddenLayers, u32 activ
 // same topology and encoding, cells of the same partition, their own occupied list): for a point x anywhere in
 // the scene's volume and a unit normal n, the radiance a white Lambertian receiver at x facing n scatters,
 // E(x, n) / pi (nrad/eval.h, volume query). A 2.3 reader passes them over and loads the surfaces.
+// VGLX and VGLW (version 2.5, optional, both or neither; only beside VVOX): the volume's glossy response, laid out
+// the same: for x, n and a unit direction v towards the viewer, the radiance a GGX receiver of roughness
+// eval::kGlossyRoughness and Fresnel 1 at x facing n reflects towards v, over eval::glossyAlbedo(n.v) (nrad/eval.h,
+// glossy query). A 2.4 reader passes them over.
 struct VoxelEntry {
     uint32_t index = 0;  // x + dims[0] * (y + dims[1] * z)
     float scale = 1.0f;
@@ -253,7 +259,8 @@ enum class DecodeStatus {
     TrailingBytes,  // bytes after the last section
     BadTree,  // TREE without kFlagTree (or the reverse), or a tree that is cyclic, shared, out of range, too
               // deep, or whose splits leave an empty or overlapping leaf
-    BadVolume,  // VVOX without VWGT (or the reverse), or either invalid as VOXL or WGHT would be
+    BadVolume,  // VVOX without VWGT, VGLX without VGLW (or the reverse), VGLX without VVOX, or either invalid as
+                // VOXL or WGHT would be
 };
 
 inline const char* decodeStatusString(DecodeStatus s) {
@@ -291,6 +298,9 @@ struct Asset {
     // The volume's networks (VVOX, VWGT; empty: none): the same cells, topology and encoding as the surfaces'.
     std::vector<VoxelEntry> volumeVoxels;
     std::vector<float> volumeWeights;
+    // The volume's glossy response (VGLX, VGLW; empty: none; only with volume networks): likewise.
+    std::vector<VoxelEntry> glossyVoxels;
+    std::vector<float> glossyWeights;
     // What VOXL indexes: the tree's leaves, or the grid's voxels.
     uint64_t cellCount() const { return tree.empty() ? grid.voxelCount() : uint64_t(leafCount); }
 };
@@ -413,7 +423,7 @@ struct SectionSpan {
     uint64_t size = 0;
 };
 struct SectionSpans {
-    SectionSpan grid, topo, voxl, wght, meta, tree, vvox, vwgt;
+    SectionSpan grid, topo, voxl, wght, meta, tree, vvox, vwgt, vglx, vglw;
     SectionSpan* of(uint32_t type) {  // null for a type this version does not know
         switch (type) {
             case kSectionGrid: return &grid;
@@ -424,6 +434,8 @@ struct SectionSpans {
             case kSectionTree: return &tree;
             case kSectionVolumeVoxels: return &vvox;
             case kSectionVolumeWeights: return &vwgt;
+            case kSectionGlossyVoxels: return &vglx;
+            case kSectionGlossyWeights: return &vglw;
             default: return nullptr;
         }
     }
@@ -582,6 +594,13 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
         if (decodeVoxels(spans.vvox, cells, volumeVoxels) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
         if (decodeWeights(spans.vwgt, t, uint32_t(volumeVoxels.size()), volumeWeights) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
     }
+    std::vector<VoxelEntry> glossyVoxels;
+    std::vector<float> glossyWeights;
+    if ((spans.vglx.at != nullptr) != (spans.vglw.at != nullptr) || (spans.vglx.at && !spans.vvox.at)) return DecodeStatus::BadVolume;
+    if (spans.vglx.at) {
+        if (decodeVoxels(spans.vglx, cells, glossyVoxels) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
+        if (decodeWeights(spans.vglw, t, uint32_t(glossyVoxels.size()), glossyWeights) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
+    }
 
     out.header = h;
     out.grid = g;
@@ -593,6 +612,8 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     out.leafCount = leafCount;
     out.volumeVoxels = std::move(volumeVoxels);
     out.volumeWeights = std::move(volumeWeights);
+    out.glossyVoxels = std::move(glossyVoxels);
+    out.glossyWeights = std::move(glossyWeights);
     return DecodeStatus::Ok;
 }
 
@@ -612,19 +633,22 @@ inline void put64(std::vector<uint8_t>& b, size_t at, uint64_t v) { for (int i =
 }  // namespace detail
 
 // The size encode() gives an asset of `networks` networks of topology t, a tree of `treeNodes` nodes (0: no
-// TREE section), `metadataBytes` of metadata (0: no META section) and `volumeNetworks` of the volume's (0: no
-// VVOX and VWGT): for writers that must fit a byte budget.
+// TREE section), `metadataBytes` of metadata (0: no META section), `volumeNetworks` of the volume's (0: no
+// VVOX and VWGT) and `glossyNetworks` of its glossy response (0: no VGLX and VGLW): for writers that must fit a
+// byte budget.
 inline uint64_t encodedSize(const Topology& t, uint64_t networks, uint64_t treeNodes, uint64_t metadataBytes,
-                            uint64_t volumeNetworks = 0) {
+                            uint64_t volumeNetworks = 0, uint64_t glossyNetworks = 0) {
     const uint64_t perNetwork = t.parameterCount() * t.bytesPerWeight();
-    const uint64_t sections[8] = {40, 24 + 4 * uint64_t(t.hiddenWidths.size()), 4 + 8 * networks, networks * perNetwork,
-                                  treeNodes ? 4 + 8 * treeNodes : 0, volumeNetworks ? 4 + 8 * volumeNetworks : 0,
-                                  volumeNetworks * perNetwork, metadataBytes};
-    const bool present[8] = {true, true, true, true, treeNodes > 0, volumeNetworks > 0, volumeNetworks > 0, metadataBytes > 0};
+    const uint64_t sections[10] = {40, 24 + 4 * uint64_t(t.hiddenWidths.size()), 4 + 8 * networks, networks * perNetwork,
+                                   treeNodes ? 4 + 8 * treeNodes : 0, volumeNetworks ? 4 + 8 * volumeNetworks : 0,
+                                   volumeNetworks * perNetwork, glossyNetworks ? 4 + 8 * glossyNetworks : 0,
+                                   glossyNetworks * perNetwork, metadataBytes};
+    const bool present[10] = {true, true, true, true, treeNodes > 0, volumeNetworks > 0, volumeNetworks > 0,
+                              glossyNetworks > 0, glossyNetworks > 0, metadataBytes > 0};
     uint64_t count = 0;
     for (bool p : present) count += p ? 1 : 0;
     uint64_t size = kHeaderSize + count * kSectionRecordSize;
-    for (int i = 0; i < 8; ++i)
+    for (int i = 0; i < 10; ++i)
         if (present[i]) size = (size + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment + sections[i];
     return size;
 }
@@ -696,6 +720,12 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
         sections.push_back(weightSection(a.volumeWeights));
         types.push_back(kSectionVolumeWeights);
     }
+    if (!a.glossyVoxels.empty()) {
+        sections.push_back(voxelSection(a.glossyVoxels));
+        types.push_back(kSectionGlossyVoxels);
+        sections.push_back(weightSection(a.glossyWeights));
+        types.push_back(kSectionGlossyWeights);
+    }
     if (!a.metadata.empty()) {  // last, so that a borrowed buffer's metadata is its tail
         sections.emplace_back(a.metadata.begin(), a.metadata.end());
         types.push_back(kSectionMetadata);
@@ -707,7 +737,7 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
     const bool hard = (a.header.flags & kFlagTree) && hardPlanes(a.tree) > 0;
-    const uint16_t minor = !a.volumeVoxels.empty() ? 4 : hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
+    const uint16_t minor = !a.glossyVoxels.empty() ? 5 : !a.volumeVoxels.empty() ? 4 : hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);
@@ -752,6 +782,13 @@ inline std::vector<uint8_t> encode(const Asset& a) {
         NRAD_CHECK(std::isfinite(a.volumeVoxels[i].scale) && a.volumeVoxels[i].scale > 0.0f);
     }
     for (float w : a.volumeWeights) NRAD_CHECK(std::isfinite(w));
+    NRAD_CHECK(a.glossyWeights.size() == a.glossyVoxels.size() * a.topology.parameterCount());
+    NRAD_CHECK(a.glossyVoxels.empty() || !a.volumeVoxels.empty());
+    for (size_t i = 0; i < a.glossyVoxels.size(); ++i) {
+        NRAD_CHECK(a.glossyVoxels[i].index < cells && (i == 0 || a.glossyVoxels[i].index > a.glossyVoxels[i - 1].index));
+        NRAD_CHECK(std::isfinite(a.glossyVoxels[i].scale) && a.glossyVoxels[i].scale > 0.0f);
+    }
+    for (float w : a.glossyWeights) NRAD_CHECK(std::isfinite(w));
     for (int k = 0; k < 3; ++k) NRAD_CHECK(std::isfinite(a.grid.lower[k]) && std::isfinite(a.grid.upper[k]));
     return encodeUnchecked(a);
 }

@@ -105,7 +105,8 @@ typedef struct NradAssetInfo {
     uint64_t fileBytes;        /* size of the asset data */
     uint64_t memoryBytes;      /* memory held by the handle */
     uint32_t volumeNetworks;   /* networks of the light in the volume (nradEvaluateVolumeBatch); 0: none (format 2.4) */
-    uint32_t reserved[15];     /* zero; later minor versions add fields here, so the struct keeps its size */
+    uint32_t glossyNetworks;   /* networks of its glossy response (nradEvaluateVolumeGlossyBatch); 0: none (format 2.5) */
+    uint32_t reserved[14];     /* zero; later minor versions add fields here, so the struct keeps its size */
 } NradAssetInfo;
 
 /* contentFlags: the radiance returned excludes the surface's own emission (add it when shading). */
@@ -167,6 +168,15 @@ NRAD_API NradStatus nradEvaluateBatchSoA(NradAsset asset, size_t count, const Nr
  * NRAD_ERROR_INVALID_ARGUMENT for an asset without volume networks (NradAssetInfo::volumeNetworks 0). */
 NRAD_API NradStatus nradEvaluateVolumeBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
                                             float* rgb, uint8_t* pointFlags);
+
+/* The volume's glossy response (assets baked with `nrad bake --volume-points N --volume-glossy`): per point, unit
+ * normal and unit direction towards the viewer (in the normal's hemisphere), the light arriving at the point
+ * prefiltered by a GGX lobe of roughness 0.3 (eval::kGlossyRoughness): what a white metallic receiver of that
+ * roughness reflects towards the viewer, over that lobe's split-sum albedo. nrad/eval.h's shadeVolumeGlossy
+ * combines it with nradEvaluateVolumeBatch's value and the receiver's material. Layout and flags as
+ * nradEvaluateBatch; NRAD_ERROR_INVALID_ARGUMENT for an asset without it (NradAssetInfo::glossyNetworks 0). */
+NRAD_API NradStatus nradEvaluateVolumeGlossyBatch(NradAsset asset, size_t count, const float* positions, const float* normals,
+                                                  const float* viewDirections, float* rgb, uint8_t* pointFlags);
 
 /* ----- shading --------------------------------------------------------------------------------------- */
 

@@ -67,6 +67,11 @@ public:
                                    uint8_t* flags = nullptr) const {
         return nradEvaluateVolumeBatch(handle_, count, positions, normals, rgb, flags);
     }
+    // Its glossy response (nradEvaluateVolumeGlossyBatch): the light prefiltered by a lobe of roughness 0.3.
+    NradStatus evaluateVolumeGlossyBatch(size_t count, const float* positions, const float* normals, const float* viewDirections,
+                                         float* rgb, uint8_t* flags = nullptr) const {
+        return nradEvaluateVolumeGlossyBatch(handle_, count, positions, normals, viewDirections, rgb, flags);
+    }
     NradStatus shadeBatch(size_t count, const float* positions, const float* normals, const float* directions,
                           const NradSurface* surfaces, float* rgb, uint8_t* flags = nullptr) const {
         return nradShadeBatch(handle_, count, positions, normals, directions, surfaces, rgb, flags);
