@@ -929,7 +929,8 @@ ValidationResult runValidation(const Scene& scene, const std::string& scenePath,
     RenderSettings fh = v.rs;
     fh.spp = settings.neuralSpp;
     fh.seed = settings.seed;
-    r.volumeBytes = size_t(info.volumeNetworks) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
+    // The volume's weights, its glossy response's included: the probes of the baseline get as many bytes.
+    r.volumeBytes = size_t(info.volumeNetworks + info.glossyNetworks) * info.parametersPerNetwork * (info.weightEncoding == 1 ? 2 : 4);
     r.insertedThroughVolume = info.volumeNetworks > 0 && !scene.insertedObjects.empty();
     r.insertedThroughGlossy = r.insertedThroughVolume && info.glossyNetworks > 0;
     if (!scene.insertedObjects.empty() && info.volumeNetworks == 0)

@@ -184,7 +184,7 @@ struct ValidationResult {
     std::vector<InsertedFigure> inserted;
     bool insertedThroughVolume = false;
     bool insertedThroughGlossy = false;  // ... and its glossy response
-    size_t volumeBytes = 0;  // the asset's volume networks' weights
+    size_t volumeBytes = 0;  // the asset's volume networks' weights (its glossy response's too)
     glm::uvec3 irradianceProbes{0};  // the baseline's irradiance probes (inserted objects only)
     ShIrradianceStats irradianceFit;
     uint32_t exactPaths = 0;  // per pixel, for InsertedFigure's exact volume quantity
