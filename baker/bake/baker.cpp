@@ -764,7 +764,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
     if (settings.volume.enabled)  // only then, so that other assets keep their bytes
         j["bake"]["volume"] = {{"points_per_cell", settings.volume.pointsPerCell}, {"paths", settings.volume.paths}};
     if (settings.volume.enabled && settings.volume.glossy)  // only then, so that other volume assets keep their bytes
-        j["bake"]["volume"]["glossy_roughness"] = eval::kGlossyRoughness;
+        j["bake"]["volume"]["glossy_roughness"] = std::round(double(eval::kGlossyRoughness) * 1e6) / 1e6;  // 0.3, not 0.30000001
     if (settings.partition.budgetBytes > 0)  // only then, so that grid assets keep their bytes
         j["bake"]["partition"] = {{"kind", "kd-tree"},
                                   {"budget_bytes", settings.partition.budgetBytes},

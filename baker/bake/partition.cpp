@@ -120,7 +120,8 @@ public:
     Refiner(const format::Grid& lattice, const std::vector<TrainingSample>& samples, const std::vector<float>& learned,
             const format::Topology& topology, const PartitionSettings& settings, const MetadataReserve& reserve)
         : settings_(settings), samples_(samples), learned_(learned), topology_(topology), reserve_(reserve), n_(samples.size()),
-          perNetwork_((1 + settings.volumeNetworks) * (8 + topology.parameterCount() * topology.bytesPerWeight()) + reserve.perNetwork) {
+          perNetwork_(8 + topology.parameterCount() * topology.bytesPerWeight() + reserve.perNetwork),
+          perLeafVolume_(settings.volumeNetworks * (8 + topology.parameterCount() * topology.bytesPerWeight())) {
         placeSamples(lattice);
         buildingGrid_ = settings.gridRefine > 0;
         cells_.resize(1);
@@ -132,12 +133,13 @@ public:
     AdaptivePartition run(const LeafScorer& scorer, const std::function<void(double)>& progress) {
         networks_ = n_ > 0 ? 1 : 0;
         if (bytesOf(std::max<uint64_t>(networks_, 1), 1) > settings_.budgetBytes)
-            throw std::runtime_error("--budget " + std::to_string(settings_.budgetBytes) + " bytes is below the smallest asset (one network: " +
+            throw std::runtime_error("--budget " + std::to_string(settings_.budgetBytes) + " bytes is below the smallest asset (" +
+                                     std::string(settings_.volumeNetworks ? "one network and its volume's, with the metadata: " : "one network: ") +
                                      std::to_string(bytesOf(1, 1)) + " bytes)");
         evaluate(cells_[0]);
         out_.rootResidual = cells_[0].residual;
         // 1. By the residual, up to `residualShare` of the budget's networks (all of it without a scorer).
-        const uint64_t perNetworkOnly = perNetwork_ + 16;
+        const uint64_t perNetworkOnly = perNetwork_ + perLeafVolume_ + 16;
         const uint64_t fixed = bytesOf(0, 1);
         const uint64_t affordable = settings_.budgetBytes > fixed ? (settings_.budgetBytes - fixed) / perNetworkOnly : 0;
         const uint64_t phaseOne = scorer ? std::max<uint64_t>(1, uint64_t(double(affordable) * settings_.residualShare)) : UINT64_MAX;
@@ -178,6 +180,7 @@ private:
     const MetadataReserve& reserve_;
     const size_t n_;
     const uint64_t perNetwork_;
+    const uint64_t perLeafVolume_;  // the volume's networks a leaf may get (PartitionSettings::volumeNetworks)
     std::vector<float> t_;  // per sample: its lattice coordinate (3)
     glm::vec3 lower_{0.0f}, upper_{0.0f};
     float featureScale_ = 0.0f;
@@ -289,8 +292,9 @@ private:
         if (settings_.gridRefine > 0 && (buildingGrid_ || c.extra >= settings_.maxExtraDepth)) c.canSplit = false;
     }
 
-    // What splitting cell `id` at its best plane costs: two nodes, and a network if both sides have samples.
-    uint64_t splitCost(uint32_t id) const { return 16 + (cells_[id].bestMakesNetwork ? perNetwork_ : 0); }
+    // What splitting cell `id` at its best plane costs: two nodes, a leaf's volume networks, and a network if both
+    // sides have samples.
+    uint64_t splitCost(uint32_t id) const { return 16 + perLeafVolume_ + (cells_[id].bestMakesNetwork ? perNetwork_ : 0); }
 
     void push(uint32_t id) {
         const BuildCell& c = cells_[id];

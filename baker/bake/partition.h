@@ -66,7 +66,8 @@ struct AdaptivePartition {
     std::vector<PartitionLeafInfo> leaves;  // in leaf order
     std::vector<uint32_t> leafOfSample;  // per training sample: the leaf holding it
     uint32_t networks = 0;  // leaves with samples
-    uint64_t bytes = 0;  // format::encodedSize of the tree, the networks and the reserved metadata
+    uint64_t bytes = 0;  // format::encodedSize of the tree, the networks and the reserved metadata (and a leaf's
+                         // volume networks for every leaf: an upper bound, PartitionSettings::volumeNetworks)
     double rootResidual = 0.0, residual = 0.0;  // summed over leaves, before and after refining
     uint64_t splitsSkippedForBudget = 0;
 };

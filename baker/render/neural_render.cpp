@@ -59,7 +59,7 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
         // The inserted objects' hits (with `volume`): their points, normals, surfaces, cosines and pixels.
         std::vector<float> vpos, vnrm, vdir, vrgb, vglossy, vcos;
         std::vector<eval::Surface> vsurfaces;
-        std::vector<uint8_t> vflags;
+        std::vector<uint8_t> vflags, gflags;
         std::vector<uint32_t> vpixelOf;
         std::vector<glm::vec3> vdirect;
         std::vector<glm::vec3> direct;  // engine-drawn lights' direct light at each hit (mixed lighting)
@@ -130,7 +130,8 @@ NradStatus renderFirstHit(const Scene& scene, const Accel& accel, const FirstHit
             vflags.assign(vn, 0);
             if (vn > 0 && st == NRAD_OK) st = volume(vn, vpos.data(), vnrm.data(), vrgb.data(), vflags.data());
             vglossy.assign(glossy ? 3 * vn : 0, 0.0f);
-            if (glossy && vn > 0 && st == NRAD_OK) st = glossy(vn, vpos.data(), vnrm.data(), vdir.data(), vglossy.data(), vflags.data());
+            gflags.assign(glossy ? vn : 0, 0);  // the volume query's flags are the ones counted
+            if (glossy && vn > 0 && st == NRAD_OK) st = glossy(vn, vpos.data(), vnrm.data(), vdir.data(), vglossy.data(), gflags.data());
             auto t2 = clock::now();
             if (st != NRAD_OK) failure = st;
             for (size_t i = 0; i < vn; ++i) {

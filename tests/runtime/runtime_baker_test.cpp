@@ -150,6 +150,7 @@ void expectVolumeQueryAgreesWithTheBaker(const Scene& scene, BakeSettings s) {
     EXPECT_LT(worst, 1e-4);  // the same fp16-decoded weights on both sides: only the order of the sums differs
     // The glossy response, where baked: at the same points and normals, seen from directions in their hemispheres.
     EXPECT_EQ(info.glossyNetworks, decoded.glossyVoxels.size());
+    ASSERT_EQ(decoded.glossyVoxels.empty(), !s.volume.glossy) << "the glossy response baked when asked for, only then";
     if (!decoded.glossyVoxels.empty()) {
         const test::VolumeQuery glossy(decoded, true);
         std::vector<float> views(3 * n);

@@ -542,11 +542,6 @@ struct Surface {
     float emission[3] = {0.0f, 0.0f, 0.0f};
 };
 
-// The reflectance an asset with format::kFlagDemodulated divides by: the diffuse albedo
-// baseColor (1 - metallic) plus the specular lobe's directional albedo F0 A + w B for the viewing angle,
-// with F0 = 0.04 specular (1 - metallic) + baseColor metallic, w = specular (1 - metallic) + metallic, and
-// (A, B) Karis's fit of the GGX split-sum terms over roughness and n.wo ("Physically Based Shading on
-// Mobile", 2014). A demodulation factor both sides agree on, not the BSDF's exact albedo; about 0 to 1.1.
 // Karis's split-sum terms (A, B) for roughness `rough` in [0, 1] and n.wo (clamped to [0, 1] here).
 inline void splitSumTerms(float rough, float cosNV, float& A, float& B) {
     const float c0[4] = {-1.0f, -0.0275f, -0.572f, 0.022f}, c1[4] = {1.0f, 0.0425f, 1.04f, -0.04f};
@@ -558,6 +553,11 @@ inline void splitSumTerms(float rough, float cosNV, float& A, float& B) {
     B = std::fmax(0.0f, 1.04f * a004 + r[3]);
 }
 
+// The reflectance an asset with format::kFlagDemodulated divides by: the diffuse albedo
+// baseColor (1 - metallic) plus the specular lobe's directional albedo F0 A + w B for the viewing angle,
+// with F0 = 0.04 specular (1 - metallic) + baseColor metallic, w = specular (1 - metallic) + metallic, and
+// (A, B) Karis's fit of the GGX split-sum terms over roughness and n.wo ("Physically Based Shading on
+// Mobile", 2014). A demodulation factor both sides agree on, not the BSDF's exact albedo; about 0 to 1.1.
 inline void reflectance(const Surface& s, float cosNV, float out[3]) {
     const float rough = s.roughness < 0.0f ? 0.0f : (s.roughness > 1.0f ? 1.0f : s.roughness);
     const float m = s.metallic < 0.0f ? 0.0f : (s.metallic > 1.0f ? 1.0f : s.metallic);
