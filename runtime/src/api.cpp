@@ -119,22 +119,20 @@ NradStatus nradGetAssetInfo(NradAsset a, NradAssetInfo* info) {
         r.contentFlags = a->asset.header.flags & format::kKnownFlags;  // NRAD_CONTENT_* are the header's flags
         r.blendBand = a->partition.band;
         r.fileBytes = a->fileBytes;
-        r.memoryBytes = sizeof(NradAsset_) + a->asset.weights.size() * sizeof(float) +
-                        a->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
-                        a->denseLookup.size() * sizeof(int32_t) +
-                        a->partition.bytes() +
-                        a->metadataCopy.size();
+        // The handle's tables and weights, the volume's and its glossy response's (assets of their own) included.
+        auto heldBytes = [](const NradAsset_& x) {
+            return sizeof(NradAsset_) + x.asset.weights.size() * sizeof(float) +
+                   x.asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) + x.denseLookup.size() * sizeof(int32_t) +
+                   x.partition.bytes() + x.metadataCopy.size();
+        };
+        r.memoryBytes = heldBytes(*a);
         if (a->volume) {
             r.volumeNetworks = uint32_t(a->volume->asset.voxels.size());
-            r.memoryBytes += sizeof(NradAsset_) + a->volume->asset.weights.size() * sizeof(float) +
-                             a->volume->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
-                             a->volume->denseLookup.size() * sizeof(int32_t) + a->volume->partition.bytes();
+            r.memoryBytes += heldBytes(*a->volume);
         }
         if (a->glossy) {
             r.glossyNetworks = uint32_t(a->glossy->asset.voxels.size());
-            r.memoryBytes += sizeof(NradAsset_) + a->glossy->asset.weights.size() * sizeof(float) +
-                             a->glossy->asset.voxels.size() * (sizeof(format::VoxelEntry) + sizeof(float)) +
-                             a->glossy->denseLookup.size() * sizeof(int32_t) + a->glossy->partition.bytes();
+            r.memoryBytes += heldBytes(*a->glossy);
         }
         *info = r;
         return NRAD_OK;

@@ -31,6 +31,14 @@ BakeSettings volumeBake() {
     return s;
 }
 
+// The scaffold under a uniform sky of radiance L, nothing else lighting it.
+Scene skyScaffold(const glm::vec3& L) {
+    Scene scene = test::makeScaffold();
+    scene.environment.kind = Environment::Kind::Constant;
+    scene.environment.color = L;
+    return scene;
+}
+
 glm::vec3 randomDirection(SplitMix64& r) {
     const float z = 1.0f - 2.0f * r.uniform(), phi = 2.0f * kPi * r.uniform(), s = std::sqrt(1.0f - z * z);
     return {s * std::cos(phi), s * std::sin(phi), z};
@@ -52,10 +60,8 @@ double rmsError(const test::VolumeQuery& query, Expected expected, float scale) 
 }
 
 TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
-    Scene scene = test::makeScaffold();
-    scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
-    scene.environment.color = L;
+    const Scene scene = skyScaffold(L);
     const BakeResult r = bakeScene(scene, volumeBake());
     ASSERT_EQ(r.asset.volumeVoxels.size(), 8u);  // every cell of the 2 x 2 x 2 grid has free space
     EXPECT_EQ(r.volumeStats.inside, 0u);
@@ -69,10 +75,8 @@ TEST(VolumeLight, AReceiverUnderAUniformSkyScattersItsRadianceAtEveryNormal) {
 // Under a byte budget the cells are a kd-tree's leaves: the budget pays for a volume network per leaf beside the
 // surfaces' networks, the asset keeps to it, and the query through the tree keeps the closed form.
 TEST(VolumeLight, UnderAByteBudgetTheVolumeNetworksFitAndKeepTheClosedForm) {
-    Scene scene = test::makeScaffold();
-    scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
-    scene.environment.color = L;
+    const Scene scene = skyScaffold(L);
     BakeSettings s = volumeBake();
     s.partition.budgetBytes = 3 * 1024;
     s.partition.levels = 4;
@@ -121,10 +125,8 @@ double glossyReceiverAlbedo(double mu) {
 // albedo) is L times the lobe's albedo over that fit, for every normal and viewer; shaded back by shadeVolumeGlossy
 // for the same receiver it gives the reflected radiance itself.
 TEST(VolumeLight, TheGlossyResponseUnderAUniformSkyIsTheSkyTimesTheLobesAlbedo) {
-    Scene scene = test::makeScaffold();
-    scene.environment.kind = Environment::Kind::Constant;
     const glm::vec3 L(0.5f, 1.0f, 2.0f);
-    scene.environment.color = L;
+    const Scene scene = skyScaffold(L);
     BakeSettings s = volumeBake();
     s.volume.glossy = true;
     const BakeResult r = bakeScene(scene, s);
@@ -221,9 +223,7 @@ TEST(VolumeLight, AReceiverInASealedDarkRoomReadsItsDarknessNotTheLitRoom) {
 }
 
 TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
-    Scene scene = test::makeScaffold();
-    scene.environment.kind = Environment::Kind::Constant;
-    scene.environment.color = glm::vec3(1.0f);
+    const Scene scene = skyScaffold(glm::vec3(1.0f));
     BakeSettings s = volumeBake();
     s.volume.pointsPerCell = 100;
     s.train.epochs = 20;
