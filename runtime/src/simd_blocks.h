@@ -149,7 +149,8 @@ inline NetworkView networkAt(const BlockContext& ctx, int32_t k) {
 }
 
 // The networks of a step's blocks (count from its first; -1: none) over their inputs, into their outputs: once for
-// both blocks where they share a network and `pairs` (the kernel has the registers), else block by block.
+// both blocks where they share a network and `pairs` (the kernel has the registers), else one after the other with
+// their output transforms together (toRadianceTwo).
 template <class V>
 NRAD_ALWAYS_INLINE inline void evalStep(const BlockContext& ctx, bool pairs, int count, const int32_t network[2],
                                         const typename V::F in[2][kInputs], typename V::F out[2][kOutputs]) {
@@ -157,6 +158,11 @@ NRAD_ALWAYS_INLINE inline void evalStep(const BlockContext& ctx, bool pairs, int
         const NetworkView net = networkAt(ctx, network[0]);
         evalNetworkPair<V>(net, in, out);
         for (int j = 0; j < 2; ++j) toRadiance<V>(net, out[j]);
+    } else if (count == 2 && network[0] >= 0 && network[1] >= 0) {  // one after the other, transformed together
+        const NetworkView a = networkAt(ctx, network[0]), b = networkAt(ctx, network[1]);
+        evalNetwork<V>(a, in[0], out[0]);
+        evalNetwork<V>(b, in[1], out[1]);
+        toRadianceTwo<V>(a, b, out);
     } else {
         for (int j = 0; j < count; ++j) {
             if (network[j] < 0) continue;
