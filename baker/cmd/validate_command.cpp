@@ -235,8 +235,8 @@ std::function<int()> addValidateCommand(CLI::App& app) {
         ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--seed", o->seed, "Seed of the reference (the curve uses seed + 1)");
     cmd->add_option("--reference", o->reference, "Use this EXR as the reference instead of rendering one");
-    cmd->add_option("--cache-dir", o->cacheDir, "Reference cache (default $XDG_CACHE_HOME/nrad or ~/.cache/nrad)");
-    cmd->add_flag("--no-cache", o->noCache, "Neither read nor write the reference cache");
+    cmd->add_option("--cache-dir", o->cacheDir, "Cache of references and SH baselines (default $XDG_CACHE_HOME/nrad or ~/.cache/nrad)");
+    cmd->add_flag("--no-cache", o->noCache, "Neither read nor write the cache (references, SH baselines)");
     cmd->add_flag("--no-baseline", o->noBaseline, "Leave out the SH-probe baseline");
     cmd->add_option("--baseline-points-per-probe", o->baselinePointsPerProbe,
                     "The SH baseline's training points: the bake's first max(" + std::to_string(kBaselineMinPoints) +

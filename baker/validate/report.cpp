@@ -330,6 +330,9 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
         j["baseline"]["fit"] = {{"cg_iterations", r.baselineFit.iterations}, {"relative_residual", r.baselineFit.relativeResidual},
                                 {"train_relmse", r.baselineFit.trainRelMse}};
         j["baseline"]["sampling_and_fit_seconds"] = r.baselineSeconds;
+        j["baseline"]["source"] = r.baselineSource;
+        j["baseline"]["cache_file"] = r.baselineCacheFile;
+        j["baseline"]["fitted_seconds"] = r.baselineFittedSeconds;
         j["comparison"] = comparisonJson(r);
     }
     if (bakeStats.is_object()) {

@@ -12,6 +12,8 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <cstring>
 #include <stdexcept>
 
 #include "baker/bake/baker.h"
@@ -23,6 +25,7 @@
 #include "baker/render/camera.h"
 #include "baker/lights/light_sampler.h"
 #include "baker/render/neural_render.h"
+#include "baker/util/atomic_file.h"
 #include "baker/util/hash.h"
 #include "baker/util/maths.h"
 
@@ -232,6 +235,13 @@ void equalError(MethodResult& m, const std::vector<CurvePoint>& curve) {
 
 namespace {
 
+// A cache key's file-name form: 16 hex digits.
+std::string hexKey(uint64_t h) {
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
+    return hex;
+}
+
 template <class T>
 void fnvAll(uint64_t& h, const std::vector<T>& v) {
     const uint64_t count = v.size();
@@ -321,9 +331,26 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     // became referenceSceneHash, and near-mirror GGX and soft suns changed glossy and sunlit images.
     const char version[] = "nrad path tracer 3, key 2";
     fnv1a(h, version, sizeof version);
-    char hex[17];
-    std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
-    return hex;
+    return hexKey(h);
+}
+
+std::string baselineKey(const Scene& baked, const BaselineKeyInputs& in) {
+    uint64_t h = referenceSceneHash(baked);
+    for (const PunctualLight& l : baked.lights) {  // the lights whose direct light the samples leave out
+        const int drawn = l.runtimeDirect ? 1 : 0;
+        fnv1a(h, &drawn, sizeof drawn);
+    }
+    const SampleSettings& ss = in.samples;
+    const uint64_t u[] = {ss.points, ss.paths, uint64_t(int64_t(ss.maxDepth)), ss.seed, ss.minSamplesPerVoxel, ss.dropHidden ? 1u : 0u,
+                          ss.neeWarmupPaths, ss.firstPoint, ss.generation, ss.extraPathsFactor, in.samplingDims.x, in.samplingDims.y,
+                          in.samplingDims.z, in.probes.x, in.probes.y, in.probes.z, in.demodulated ? 1u : 0u};
+    fnv1a(h, u, sizeof u);
+    const float f[] = {ss.noisyRelativeError, in.lower.x, in.lower.y, in.lower.z, in.upper.x, in.upper.y, in.upper.z};
+    fnv1a(h, f, sizeof f);
+    // Bump when the samples' tracing or the fit changes what it gives.
+    const char version[] = "nrad sh baseline 1";
+    fnv1a(h, version, sizeof version);
+    return hexKey(h);
 }
 
 std::vector<size_t> materialsByNeuralShare(const ValidationResult& r) {
@@ -743,7 +770,73 @@ ShIrradianceGrid fitIrradianceBaseline(ValidationRun& v, const NradAssetInfo& in
     return g;
 }
 
-// 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples.
+// The baseline's cache file: "NRADSHB1", then the probes (dims, box, fp16-rounded coefficients as float) and what
+// the report says of their fit. Anything else read (another layout, a short file) is no entry.
+constexpr char kBaselineCacheMagic[8] = {'N', 'R', 'A', 'D', 'S', 'H', 'B', '1'};
+
+struct CachedBaseline {
+    ShProbeGrid probes;
+    ShFitStats fit;
+    uint64_t trainingSamples = 0, trainingPaths = 0;
+    double seconds = 0.0;
+};
+
+template <class T>
+void appendBytes(std::vector<uint8_t>& out, const T& value) {
+    const auto* b = reinterpret_cast<const uint8_t*>(&value);
+    out.insert(out.end(), b, b + sizeof value);
+}
+
+std::vector<uint8_t> encodeBaseline(const CachedBaseline& c) {
+    std::vector<uint8_t> out(kBaselineCacheMagic, kBaselineCacheMagic + 8);
+    for (int k = 0; k < 3; ++k) appendBytes(out, uint32_t(c.probes.dims[k]));
+    for (int k = 0; k < 3; ++k) appendBytes(out, c.probes.lower[k]);
+    for (int k = 0; k < 3; ++k) appendBytes(out, c.probes.upper[k]);
+    appendBytes(out, int32_t(c.fit.iterations));
+    appendBytes(out, c.fit.relativeResidual);
+    appendBytes(out, c.fit.trainRelMse);
+    appendBytes(out, c.trainingSamples);
+    appendBytes(out, c.trainingPaths);
+    appendBytes(out, c.seconds);
+    appendBytes(out, uint64_t(c.probes.coeffs.size()));
+    const auto* b = reinterpret_cast<const uint8_t*>(c.probes.coeffs.data());
+    out.insert(out.end(), b, b + c.probes.coeffs.size() * sizeof(float));
+    return out;
+}
+
+// The entry, if `bytes` is one for probes of `dims` (else nullopt).
+std::optional<CachedBaseline> decodeBaseline(const std::vector<uint8_t>& bytes, const glm::uvec3& dims) {
+    size_t at = 0;
+    auto take = [&](auto& value) {
+        if (bytes.size() - at < sizeof value) return false;
+        std::memcpy(&value, bytes.data() + at, sizeof value);
+        at += sizeof value;
+        return true;
+    };
+    if (bytes.size() < 8 || std::memcmp(bytes.data(), kBaselineCacheMagic, 8) != 0) return std::nullopt;
+    at = 8;
+    CachedBaseline c;
+    uint32_t d[3];
+    int32_t iterations = 0;
+    uint64_t count = 0;
+    bool ok = take(d[0]) && take(d[1]) && take(d[2]);
+    for (int k = 0; k < 3; ++k) ok = ok && take(c.probes.lower[k]);
+    for (int k = 0; k < 3; ++k) ok = ok && take(c.probes.upper[k]);
+    ok = ok && take(iterations) && take(c.fit.relativeResidual) && take(c.fit.trainRelMse) && take(c.trainingSamples) &&
+         take(c.trainingPaths) && take(c.seconds) && take(count);
+    if (!ok || glm::uvec3(d[0], d[1], d[2]) != dims) return std::nullopt;
+    c.probes.dims = dims;
+    if (count != uint64_t(c.probes.probeCount()) * 27 || bytes.size() - at != count * sizeof(float)) return std::nullopt;
+    c.probes.coeffs.resize(size_t(count));
+    std::memcpy(c.probes.coeffs.data(), bytes.data() + at, size_t(count) * sizeof(float));
+    for (float x : c.probes.coeffs)
+        if (!std::isfinite(x)) return std::nullopt;
+    c.fit.iterations = iterations;
+    return c;
+}
+
+// 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples (or read from the cache,
+// where the same probes were fitted before: baselineKey).
 void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettings& fh) {
     ValidationResult& r = v.r;
     auto t0 = clock_type::now();
@@ -754,7 +847,46 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
     const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
     r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
     capBaselineBudget(r, v.settings, uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z, ss);
-    const ShProbeGrid probes = fitBaseline(v, info, ss, dims, t0);
+    if (!v.settings.cacheDir.empty()) {
+        BaselineKeyInputs key;
+        key.samples = ss;
+        key.samplingDims = dims;
+        key.lower = lower;
+        key.upper = upper;
+        key.probes = r.baselineProbes;
+        key.demodulated = (info.contentFlags & NRAD_CONTENT_DEMODULATED) != 0;
+        r.baselineCacheFile = (fs::path(v.settings.cacheDir) / ("baseline-" + baselineKey(v.baked, key) + ".bin")).string();
+    }
+    std::optional<CachedBaseline> cached;
+    if (!r.baselineCacheFile.empty() && fs::exists(r.baselineCacheFile)) {
+        try {
+            cached = decodeBaseline(readFileBytes(r.baselineCacheFile), r.baselineProbes);
+        } catch (const std::exception&) {
+            // unreadable cache entry: fit again and replace it
+        }
+    }
+    ShProbeGrid probes;
+    if (cached) {
+        probes = std::move(cached->probes);
+        r.baselineFit = cached->fit;
+        r.baselineTrainingSamples = size_t(cached->trainingSamples);
+        r.baselineTrainingPaths = cached->trainingPaths;
+        r.baselineFittedSeconds = cached->seconds;
+        r.baselineSeconds = since(t0);
+        r.baselineSource = "cache";
+        char line[120];
+        std::snprintf(line, sizeof line, " (fitted in %.1f s)", r.baselineFittedSeconds);
+        v.say("baseline: probes from the cache, " + r.baselineCacheFile + line);
+    } else {
+        probes = fitBaseline(v, info, ss, dims, t0);
+        r.baselineFittedSeconds = r.baselineSeconds;
+        r.baselineSource = "fitted";
+        if (!r.baselineCacheFile.empty()) {
+            fs::create_directories(v.settings.cacheDir);
+            writeBytesAtomically(r.baselineCacheFile, encodeBaseline({probes, r.baselineFit, r.baselineTrainingSamples,
+                                                                      r.baselineTrainingPaths, r.baselineSeconds}));
+        }
+    }
     if (v.scene.insertedObjects.empty()) return renderBaseline(v, probes, nullptr, info, fh);
     const ShIrradianceGrid irradiance = fitIrradianceBaseline(v, info, ss);
     renderBaseline(v, probes, &irradiance, info, fh);

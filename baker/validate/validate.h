@@ -12,6 +12,7 @@
 #include <nrad/format.h>
 #include <nrad/nrad.h>
 
+#include "baker/bake/training_samples.h"
 #include "baker/render/accel.h"
 #include "baker/render/image_io.h"
 #include "baker/render/path_tracer.h"
@@ -41,7 +42,7 @@ struct ValidateSettings {
     int neuralSpp = 4;  // the paper's: primary visibility anti-aliasing for neural and baseline renders
     int curveMaxSpp = 64;  // the path tracer's convergence curve: 1, 2, 4, ... up to this
     uint32_t seed = 0;  // the reference's; the curve uses seed + 1 (independent of the reference)
-    std::string cacheDir;  // reference cache; empty: no cache
+    std::string cacheDir;  // the reference's and the SH baseline's cache; empty: no cache
     std::string referenceImage;  // use this EXR as the reference instead of rendering one
     bool baseline = true;  // fit and render the SH-probe baseline
     // The baseline's training budget (kBaselinePointsPerProbe says why): at most max(baselineMinPoints,
@@ -168,7 +169,10 @@ struct ValidationResult {
     size_t baselineTrainingSamples = 0;
     uint64_t baselineTrainingPaths = 0;  // the paths traced for its samples' targets
     std::string baselineSamplesNote;  // where the baseline's training settings came from
-    double baselineSeconds = 0.0;  // sampling + fit
+    double baselineSeconds = 0.0;  // sampling + fit, or reading the cache
+    std::string baselineSource;  // "fitted" or "cache"
+    std::string baselineCacheFile;  // empty: no cache
+    double baselineFittedSeconds = 0.0;  // sampling + fit when the probes were fitted (from the cache: then)
     nlohmann::json assetMetadata;  // parsed META, or null
     // Truncated light transport, said every time (issue 38): a reference or a bake whose paths were cut at a
     // length lacks the light of longer paths, which interiors are made of.
@@ -200,6 +204,20 @@ uint64_t referenceSceneHash(const Scene& scene);
 // the renderer's version; nothing else (not the asset, its lighting split, the neural spp, the curve or the
 // exposure). 16 hex digits.
 std::string referenceKey(const Scene& scene, const ValidateSettings& s, int width, int height);
+
+// The SH baseline's probes depend on neither the view nor the asset's weights: on the scene as baked with which
+// of its lights the engine draws (their direct light is left out of the samples), the samples' settings after the
+// budget, the sampling grid, the probes' box and lattice, whether they are demodulated, and the fit. Their cache
+// file in `cacheDir` is named by this key (16 hex digits), so that validating an asset again (another view, spp
+// or exposure) fits them once.
+struct BaselineKeyInputs {
+    SampleSettings samples;
+    glm::uvec3 samplingDims{0};
+    glm::vec3 lower{0.0f}, upper{0.0f};
+    glm::uvec3 probes{0};
+    bool demodulated = false;
+};
+std::string baselineKey(const Scene& baked, const BaselineKeyInputs& in);
 
 // Runs the whole validation. `log` receives one line per step (may be empty). Throws std::runtime_error
 // (bad reference file, evaluation failure) and IoError (cache write).

@@ -2,6 +2,7 @@
 // equal-error interpolation, the bake curve aggregation and the SVG plot.
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -640,6 +641,103 @@ TEST(Validate, BaselineTrainsOnABudgetPerProbeTheSameForAnyThreads) {
     };
     EXPECT_TRUE(said("baseline: sampling 100%"));
     EXPECT_TRUE(said("baseline: fit 100%"));
+}
+
+TEST(Validate, BaselineProbesComeFromTheCacheWhileNothingTheyDependOnChanges) {
+    // Issue 37: the probes depend on the scene as baked and the samples' settings, not on the view, the spp or the
+    // exposure; validating the asset again reads them from the cache (the same bits), a change of what they
+    // depend on fits them again, and a damaged entry is fitted again and replaced.
+    namespace fs = std::filesystem;
+    Scene scene = loadGltf(test::sourcePath("scenes/cornell-box/cornell-box.gltf"));
+    const std::vector<uint8_t> bytes = quickBake(scene, 20000, 2, 20);
+    NradAsset asset = nullptr;
+    ASSERT_EQ(nradLoadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_COPY, &asset, nullptr, 0), NRAD_OK);
+    ValidateSettings s = tinyValidation(scene, 24, 2, 1);
+    s.cacheDir = test::temporaryDirectory();
+    const ValidationResult first = runValidation(scene, "", asset, "", s);
+    ValidateSettings other = s;  // another view, exposure and spp: the same probes
+    other.camera.position += glm::vec3(0.05f, 0.0f, 0.0f);
+    other.exposure = 1.0f;
+    other.neuralSpp = 2;
+    std::vector<std::string> lines;
+    const ValidationResult again = runValidation(scene, "", asset, "", other, [&](const std::string& l) { lines.push_back(l); });
+    ValidateSettings uncached = other;
+    uncached.cacheDir.clear();
+    const ValidationResult fresh = runValidation(scene, "", asset, "", uncached);
+    ValidateSettings fewer = s;  // fewer paths a point: other samples
+    fewer.baselineMinPaths = 0;
+    fewer.baselinePathsPerProbe = 1;
+    const ValidationResult refit = runValidation(scene, "", asset, "", fewer);
+    ASSERT_TRUE(first.baseline && again.baseline && fresh.baseline && refit.baseline);
+    EXPECT_EQ(first.baselineSource, "fitted");
+    ASSERT_FALSE(first.baselineCacheFile.empty());
+    EXPECT_TRUE(fs::exists(first.baselineCacheFile));
+    EXPECT_EQ(again.baselineSource, "cache");
+    EXPECT_EQ(again.baselineCacheFile, first.baselineCacheFile);
+    bool said = false;
+    for (const std::string& l : lines) said = said || l.find("baseline: probes from the cache") != std::string::npos;
+    EXPECT_TRUE(said);
+    EXPECT_EQ(again.baselineTrainingSamples, first.baselineTrainingSamples);
+    EXPECT_EQ(again.baselineTrainingPaths, first.baselineTrainingPaths);
+    EXPECT_EQ(again.baselineFit.iterations, first.baselineFit.iterations);
+    EXPECT_EQ(again.baselineFit.trainRelMse, first.baselineFit.trainRelMse);
+    EXPECT_EQ(again.baselineFittedSeconds, first.baselineSeconds);
+    // The cached probes shade the other view exactly as probes fitted there and then.
+    EXPECT_EQ(fresh.baselineSource, "fitted");
+    EXPECT_TRUE(fresh.baselineCacheFile.empty());
+    const std::vector<glm::vec3>&p = again.baseline->image.pixels, &q = fresh.baseline->image.pixels;
+    ASSERT_EQ(p.size(), q.size());
+    EXPECT_EQ(std::memcmp(p.data(), q.data(), p.size() * sizeof(glm::vec3)), 0);
+    EXPECT_EQ(refit.baselineSource, "fitted");
+    EXPECT_NE(refit.baselineCacheFile, first.baselineCacheFile);
+    // A damaged entry: fitted again, the same probes, and the entry replaced.
+    fs::resize_file(first.baselineCacheFile, fs::file_size(first.baselineCacheFile) - 4);
+    const ValidationResult repaired = runValidation(scene, "", asset, "", s);
+    EXPECT_EQ(repaired.baselineSource, "fitted");
+    EXPECT_EQ(repaired.baselineFit.trainRelMse, first.baselineFit.trainRelMse);
+    EXPECT_EQ(runValidation(scene, "", asset, "", s).baselineSource, "cache");
+    nradReleaseAsset(asset);
+
+    // The key follows what the probes depend on: the engine-drawn lights (which the reference's key leaves out),
+    // the samples, the sampling grid, the box, the lattice, demodulation; not the camera (it is not an input).
+    BaselineKeyInputs in;
+    in.samples.points = 1000;
+    in.samples.paths = 8;
+    in.samplingDims = glm::uvec3(3);
+    in.lower = glm::vec3(-1.0f);
+    in.upper = glm::vec3(1.0f);
+    in.probes = glm::uvec3(4);
+    Scene lit = test::makeLitPlane(0.5f, 1.0f);
+    PunctualLight sun;
+    sun.type = PunctualLight::Type::Directional;
+    sun.direction = glm::vec3(0, 0, -1);
+    sun.intensity = glm::vec3(3.0f);
+    lit.lights.push_back(sun);
+    const std::string key = baselineKey(lit, in);
+    EXPECT_EQ(key.size(), 16u);
+    EXPECT_EQ(baselineKey(lit, in), key);
+    std::vector<std::string> keys = {key};
+    Scene drawn = lit;
+    drawn.lights[0].runtimeDirect = true;
+    keys.push_back(baselineKey(drawn, in));
+    Scene brighter = lit;
+    brighter.lights[0].intensity = glm::vec3(4.0f);
+    keys.push_back(baselineKey(brighter, in));
+    auto with = [&](auto change) {
+        BaselineKeyInputs t = in;
+        change(t);
+        keys.push_back(baselineKey(lit, t));
+    };
+    with([](BaselineKeyInputs& t) { t.samples.points = 1001; });
+    with([](BaselineKeyInputs& t) { t.samples.paths = 4; });
+    with([](BaselineKeyInputs& t) { t.samples.seed = 1; });
+    with([](BaselineKeyInputs& t) { t.samples.maxDepth = 6; });
+    with([](BaselineKeyInputs& t) { t.samplingDims.z = 4; });
+    with([](BaselineKeyInputs& t) { t.lower.x = -1.5f; });
+    with([](BaselineKeyInputs& t) { t.probes.y = 5; });
+    with([](BaselineKeyInputs& t) { t.demodulated = true; });
+    for (size_t i = 0; i < keys.size(); ++i)
+        for (size_t j = 0; j < i; ++j) EXPECT_NE(keys[i], keys[j]) << i << " / " << j;
 }
 
 TEST(ShProbes, BasisIsOrthonormalOnTheSphere) {
