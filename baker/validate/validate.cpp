@@ -235,6 +235,11 @@ void equalError(MethodResult& m, const std::vector<CurvePoint>& curve) {
 
 namespace {
 
+// Bump when the renderer's output changes (2: issue 12; 3: issue 14); "key 2" (issue 37): the scene's part of the
+// reference's key became referenceSceneHash, and near-mirror GGX and soft suns changed glossy and sunlit images.
+// Both cache keys hash it: the baseline's samples are traced by the same renderer.
+constexpr char kRendererVersion[] = "nrad path tracer 3, key 2";
+
 // A cache key's file-name form: 16 hex digits.
 std::string hexKey(uint64_t h) {
     char hex[17];
@@ -327,10 +332,7 @@ std::string referenceKey(const Scene& scene, const ValidateSettings& s, int widt
     fnv1a(h, f, sizeof f);
     int v[] = {width, height, s.referenceSpp, s.maxDepth, int(s.seed)};
     fnv1a(h, v, sizeof v);
-    // Bump when the renderer's output changes (2: issue 12; 3: issue 14); "key 2" (issue 37): the scene's part
-    // became referenceSceneHash, and near-mirror GGX and soft suns changed glossy and sunlit images.
-    const char version[] = "nrad path tracer 3, key 2";
-    fnv1a(h, version, sizeof version);
+    fnv1a(h, kRendererVersion, sizeof kRendererVersion);
     return hexKey(h);
 }
 
@@ -341,13 +343,16 @@ std::string baselineKey(const Scene& baked, const BaselineKeyInputs& in) {
         fnv1a(h, &drawn, sizeof drawn);
     }
     const SampleSettings& ss = in.samples;
+    // Every field of SampleSettings below: a new one must join them (or say why the probes do not depend on it).
+    static_assert(sizeof(SampleSettings) == 48, "SampleSettings changed: add the new field to baselineKey");
     const uint64_t u[] = {ss.points, ss.paths, uint64_t(int64_t(ss.maxDepth)), ss.seed, ss.minSamplesPerVoxel, ss.dropHidden ? 1u : 0u,
                           ss.neeWarmupPaths, ss.firstPoint, ss.generation, ss.extraPathsFactor, in.samplingDims.x, in.samplingDims.y,
                           in.samplingDims.z, in.probes.x, in.probes.y, in.probes.z, in.demodulated ? 1u : 0u};
     fnv1a(h, u, sizeof u);
     const float f[] = {ss.noisyRelativeError, in.lower.x, in.lower.y, in.lower.z, in.upper.x, in.upper.y, in.upper.z};
     fnv1a(h, f, sizeof f);
-    // Bump when the samples' tracing or the fit changes what it gives.
+    // The renderer's version, and the fit's: bump it when the samples' use or the fit changes what it gives.
+    fnv1a(h, kRendererVersion, sizeof kRendererVersion);
     const char version[] = "nrad sh baseline 1";
     fnv1a(h, version, sizeof version);
     return hexKey(h);
@@ -804,8 +809,9 @@ std::vector<uint8_t> encodeBaseline(const CachedBaseline& c) {
     return out;
 }
 
-// The entry, if `bytes` is one for probes of `dims` (else nullopt).
-std::optional<CachedBaseline> decodeBaseline(const std::vector<uint8_t>& bytes, const glm::uvec3& dims) {
+// The entry, if `bytes` is one for probes of `dims` over lower..upper (else nullopt).
+std::optional<CachedBaseline> decodeBaseline(const std::vector<uint8_t>& bytes, const glm::uvec3& dims, const glm::vec3& lower,
+                                             const glm::vec3& upper) {
     size_t at = 0;
     auto take = [&](auto& value) {
         if (bytes.size() - at < sizeof value) return false;
@@ -824,7 +830,9 @@ std::optional<CachedBaseline> decodeBaseline(const std::vector<uint8_t>& bytes, 
     for (int k = 0; k < 3; ++k) ok = ok && take(c.probes.upper[k]);
     ok = ok && take(iterations) && take(c.fit.relativeResidual) && take(c.fit.trainRelMse) && take(c.trainingSamples) &&
          take(c.trainingPaths) && take(c.seconds) && take(count);
-    if (!ok || glm::uvec3(d[0], d[1], d[2]) != dims) return std::nullopt;
+    if (!ok || glm::uvec3(d[0], d[1], d[2]) != dims || c.probes.lower != lower || c.probes.upper != upper) return std::nullopt;
+    for (double x : {c.fit.relativeResidual, c.fit.trainRelMse, c.seconds})
+        if (!std::isfinite(x)) return std::nullopt;
     c.probes.dims = dims;
     if (count != uint64_t(c.probes.probeCount()) * 27 || bytes.size() - at != count * sizeof(float)) return std::nullopt;
     c.probes.coeffs.resize(size_t(count));
@@ -858,9 +866,10 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
         r.baselineCacheFile = (fs::path(v.settings.cacheDir) / ("baseline-" + baselineKey(v.baked, key) + ".bin")).string();
     }
     std::optional<CachedBaseline> cached;
-    if (!r.baselineCacheFile.empty() && fs::exists(r.baselineCacheFile)) {
+    std::error_code noEntry;
+    if (!r.baselineCacheFile.empty() && fs::exists(r.baselineCacheFile, noEntry)) {
         try {
-            cached = decodeBaseline(readFileBytes(r.baselineCacheFile), r.baselineProbes);
+            cached = decodeBaseline(readFileBytes(r.baselineCacheFile), r.baselineProbes, lower, upper);
         } catch (const std::exception&) {
             // unreadable cache entry: fit again and replace it
         }
@@ -882,9 +891,14 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
         r.baselineFittedSeconds = r.baselineSeconds;
         r.baselineSource = "fitted";
         if (!r.baselineCacheFile.empty()) {
-            fs::create_directories(v.settings.cacheDir);
-            writeBytesAtomically(r.baselineCacheFile, encodeBaseline({probes, r.baselineFit, r.baselineTrainingSamples,
-                                                                      r.baselineTrainingPaths, r.baselineSeconds}));
+            try {  // the probes are fitted: a cache that cannot take them costs the next validation the fit, no more
+                fs::create_directories(v.settings.cacheDir);
+                writeBytesAtomically(r.baselineCacheFile, encodeBaseline({probes, r.baselineFit, r.baselineTrainingSamples,
+                                                                          r.baselineTrainingPaths, r.baselineSeconds}));
+            } catch (const std::exception& e) {
+                v.say(std::string("warning: the baseline's probes were not cached: ") + e.what());
+                r.baselineCacheFile.clear();
+            }
         }
     }
     if (v.scene.insertedObjects.empty()) return renderBaseline(v, probes, nullptr, info, fh);

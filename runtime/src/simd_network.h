@@ -26,8 +26,9 @@ inline void toRadiance(const NetworkView& net, typename V::F out[3]) {
 
 // toRadiance on two blocks' outputs at once (networks a and b of one asset), lane for lane the same operations:
 // exp(x) - 1 is a chain of about fourteen dependent operations, and three chains at a time (one block) left the
-// multiply-add pipes idle for most of their latency; six interleaved fill them (AVX2, whose blocks are evaluated
-// one after the other: 1.2x the coherent batch rate, docs/design.md).
+// multiply-add pipes idle for most of their latency; six interleaved fill them. Every step whose blocks are
+// evaluated one after the other: AVX2's always (1.2x its coherent batch rate, docs/design.md), AVX-512's and NEON's
+// when the two blocks have different networks.
 template <class V>
 NRAD_ALWAYS_INLINE inline void toRadianceTwo(const NetworkView& a, const NetworkView& b, typename V::F out[2][kOutputs]) {
     using F = typename V::F;

@@ -444,10 +444,11 @@ TEST(Runtime, CoherentRunsInBothLayoutsMatchAPlainForwardPass) {
 // Bit for bit: a point gets the same result in any batch, layout or path (vector block, blended block,
 // grouped pass, single point).
 TEST(Runtime, SoAAndInterleavedAndSinglePointAgree) {
+    // Both output transforms: two blocks evaluated one after the other take theirs together (toRadianceTwo).
+    for (format::OutputTransform transform : {format::OutputTransform::Exponential, format::OutputTransform::ClampedLinear})
     for (float band : {0.0f, 0.25f}) {
-    SCOPED_TRACE("band " + std::to_string(band));
-    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 7,
-                                  glm::uvec3(3, 2, 2), band);
+    SCOPED_TRACE("band " + std::to_string(band) + ", transform " + std::to_string(int(transform)));
+    format::Asset a = randomAsset({9}, format::WeightEncoding::Float16, transform, 7, glm::uvec3(3, 2, 2), band);
     std::vector<uint8_t> bytes = format::encode(a);
     nrad::Asset asset;
     ASSERT_EQ(asset.loadFromMemory(bytes.data(), bytes.size(), NRAD_LOAD_BORROW), NRAD_OK);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -682,6 +683,11 @@ TEST(Validate, BaselineProbesComeFromTheCacheWhileNothingTheyDependOnChanges) {
     EXPECT_EQ(again.baselineFit.iterations, first.baselineFit.iterations);
     EXPECT_EQ(again.baselineFit.trainRelMse, first.baselineFit.trainRelMse);
     EXPECT_EQ(again.baselineFittedSeconds, first.baselineSeconds);
+    const nlohmann::json report = reportJson(again, nlohmann::json());
+    EXPECT_EQ(report["baseline"]["source"], "cache");
+    EXPECT_EQ(report["baseline"]["cache_file"], first.baselineCacheFile);
+    EXPECT_EQ(report["baseline"]["sampling_and_fit_seconds"].get<double>(), first.baselineSeconds);
+    EXPECT_EQ(report["baseline"]["seconds"].get<double>(), again.baselineSeconds);
     // The cached probes shade the other view exactly as probes fitted there and then.
     EXPECT_EQ(fresh.baselineSource, "fitted");
     EXPECT_TRUE(fresh.baselineCacheFile.empty());
@@ -690,12 +696,23 @@ TEST(Validate, BaselineProbesComeFromTheCacheWhileNothingTheyDependOnChanges) {
     EXPECT_EQ(std::memcmp(p.data(), q.data(), p.size() * sizeof(glm::vec3)), 0);
     EXPECT_EQ(refit.baselineSource, "fitted");
     EXPECT_NE(refit.baselineCacheFile, first.baselineCacheFile);
-    // A damaged entry: fitted again, the same probes, and the entry replaced.
-    fs::resize_file(first.baselineCacheFile, fs::file_size(first.baselineCacheFile) - 4);
-    const ValidationResult repaired = runValidation(scene, "", asset, "", s);
-    EXPECT_EQ(repaired.baselineSource, "fitted");
-    EXPECT_EQ(repaired.baselineFit.trainRelMse, first.baselineFit.trainRelMse);
-    EXPECT_EQ(runValidation(scene, "", asset, "", s).baselineSource, "cache");
+    // A damaged entry (short, another magic, a NaN coefficient): fitted again, the same probes, the entry replaced.
+    const std::string good = test::fileBytes(first.baselineCacheFile);
+    ASSERT_GT(good.size(), 64u);
+    std::string otherMagic = good, nanCoefficient = good;
+    otherMagic[7] = '2';
+    const float nan = std::nanf("");
+    std::memcpy(&nanCoefficient[good.size() - 8], &nan, sizeof nan);
+    for (const std::string& damaged : {good.substr(0, good.size() - 4), otherMagic, nanCoefficient}) {
+        {
+            std::ofstream f(first.baselineCacheFile, std::ios::binary | std::ios::trunc);
+            f.write(damaged.data(), std::streamsize(damaged.size()));
+        }
+        const ValidationResult repaired = runValidation(scene, "", asset, "", s);
+        EXPECT_EQ(repaired.baselineSource, "fitted");
+        EXPECT_EQ(repaired.baselineFit.trainRelMse, first.baselineFit.trainRelMse);
+        EXPECT_EQ(runValidation(scene, "", asset, "", s).baselineSource, "cache");
+    }
     nradReleaseAsset(asset);
 
     // The key follows what the probes depend on: the engine-drawn lights (which the reference's key leaves out),
@@ -729,6 +746,15 @@ TEST(Validate, BaselineProbesComeFromTheCacheWhileNothingTheyDependOnChanges) {
         keys.push_back(baselineKey(lit, t));
     };
     with([](BaselineKeyInputs& t) { t.samples.points = 1001; });
+    with([](BaselineKeyInputs& t) { t.samples.minSamplesPerVoxel = 32; });
+    with([](BaselineKeyInputs& t) { t.samples.dropHidden = false; });
+    with([](BaselineKeyInputs& t) { t.samples.neeWarmupPaths = 1000; });
+    with([](BaselineKeyInputs& t) { t.samples.firstPoint = 7; });
+    with([](BaselineKeyInputs& t) { t.samples.generation = 1; });
+    with([](BaselineKeyInputs& t) { t.samples.extraPathsFactor = 1; });
+    with([](BaselineKeyInputs& t) { t.samples.noisyRelativeError = 0.2f; });
+    with([](BaselineKeyInputs& t) { t.samplingDims.x = 4; });
+    with([](BaselineKeyInputs& t) { t.upper.y = 1.5f; });
     with([](BaselineKeyInputs& t) { t.samples.paths = 4; });
     with([](BaselineKeyInputs& t) { t.samples.seed = 1; });
     with([](BaselineKeyInputs& t) { t.samples.maxDepth = 6; });
