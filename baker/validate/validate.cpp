@@ -7,13 +7,13 @@
 #include <nrad/eval.h>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <cstring>
 #include <stdexcept>
 
 #include "baker/bake/baker.h"
@@ -843,18 +843,11 @@ std::optional<CachedBaseline> decodeBaseline(const std::vector<uint8_t>& bytes, 
     return c;
 }
 
-// 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples (or read from the cache,
-// where the same probes were fitted before: baselineKey).
-void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettings& fh) {
+// The baseline's probes: from the cache, where the same probes were fitted before (baselineKey), else fitted now
+// (fitBaseline) and cached; r's baseline fields either way.
+ShProbeGrid cachedOrFittedProbes(ValidationRun& v, const NradAssetInfo& info, const SampleSettings& ss, const glm::uvec3& dims,
+                                 const glm::vec3& lower, const glm::vec3& upper, clock_type::time_point t0) {
     ValidationResult& r = v.r;
-    auto t0 = clock_type::now();
-    glm::uvec3 dims;
-    SampleSettings ss = bakeSampleSettings(r, info, dims);
-    // The probes first: the training budget follows their count.
-    const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
-    const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
-    r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
-    capBaselineBudget(r, v.settings, uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z, ss);
     if (!v.settings.cacheDir.empty()) {
         BaselineKeyInputs key;
         key.samples = ss;
@@ -874,9 +867,7 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
             // unreadable cache entry: fit again and replace it
         }
     }
-    ShProbeGrid probes;
     if (cached) {
-        probes = std::move(cached->probes);
         r.baselineFit = cached->fit;
         r.baselineTrainingSamples = size_t(cached->trainingSamples);
         r.baselineTrainingPaths = cached->trainingPaths;
@@ -886,21 +877,36 @@ void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettin
         char line[120];
         std::snprintf(line, sizeof line, " (fitted in %.1f s)", r.baselineFittedSeconds);
         v.say("baseline: probes from the cache, " + r.baselineCacheFile + line);
-    } else {
-        probes = fitBaseline(v, info, ss, dims, t0);
-        r.baselineFittedSeconds = r.baselineSeconds;
-        r.baselineSource = "fitted";
-        if (!r.baselineCacheFile.empty()) {
-            try {  // the probes are fitted: a cache that cannot take them costs the next validation the fit, no more
-                fs::create_directories(v.settings.cacheDir);
-                writeBytesAtomically(r.baselineCacheFile, encodeBaseline({probes, r.baselineFit, r.baselineTrainingSamples,
-                                                                          r.baselineTrainingPaths, r.baselineSeconds}));
-            } catch (const std::exception& e) {
-                v.say(std::string("warning: the baseline's probes were not cached: ") + e.what());
-                r.baselineCacheFile.clear();
-            }
+        return std::move(cached->probes);
+    }
+    ShProbeGrid probes = fitBaseline(v, info, ss, dims, t0);
+    r.baselineFittedSeconds = r.baselineSeconds;
+    r.baselineSource = "fitted";
+    if (!r.baselineCacheFile.empty()) {
+        try {  // the probes are fitted: a cache that cannot take them costs the next validation the fit, no more
+            fs::create_directories(v.settings.cacheDir);
+            writeBytesAtomically(r.baselineCacheFile,
+                                 encodeBaseline({probes, r.baselineFit, r.baselineTrainingSamples, r.baselineTrainingPaths, r.baselineSeconds}));
+        } catch (const std::exception& e) {
+            v.say(std::string("warning: the baseline's probes were not cached: ") + e.what());
+            r.baselineCacheFile.clear();
         }
     }
+    return probes;
+}
+
+// 4. The baseline: L2 SH probes of the same bytes, fitted to the same training samples (or read from the cache).
+void runBaseline(ValidationRun& v, const NradAssetInfo& info, const RenderSettings& fh) {
+    ValidationResult& r = v.r;
+    auto t0 = clock_type::now();
+    glm::uvec3 dims;
+    SampleSettings ss = bakeSampleSettings(r, info, dims);
+    // The probes first: the training budget follows their count.
+    const glm::vec3 lower(info.gridLower[0], info.gridLower[1], info.gridLower[2]);
+    const glm::vec3 upper(info.gridUpper[0], info.gridUpper[1], info.gridUpper[2]);
+    r.baselineProbes = probeDimsForBudget(lower, upper, r.neural.bytes);
+    capBaselineBudget(r, v.settings, uint64_t(r.baselineProbes.x) * r.baselineProbes.y * r.baselineProbes.z, ss);
+    const ShProbeGrid probes = cachedOrFittedProbes(v, info, ss, dims, lower, upper, t0);
     if (v.scene.insertedObjects.empty()) return renderBaseline(v, probes, nullptr, info, fh);
     const ShIrradianceGrid irradiance = fitIrradianceBaseline(v, info, ss);
     renderBaseline(v, probes, &irradiance, info, fh);

@@ -27,8 +27,8 @@ inline void toRadiance(const NetworkView& net, typename V::F out[3]) {
 // toRadiance on two blocks' outputs at once (networks a and b of one asset), lane for lane the same operations:
 // exp(x) - 1 is a chain of about fourteen dependent operations, and three chains at a time (one block) left the
 // multiply-add pipes idle for most of their latency; six interleaved fill them. Every step whose blocks are
-// evaluated one after the other: AVX2's always (1.2x its coherent batch rate, docs/design.md), AVX-512's and NEON's
-// when the two blocks have different networks.
+// evaluated one after the other: AVX2's always (with the partial sums below, 1.1x its coherent batch rate:
+// docs/design.md), AVX-512's and NEON's when the two blocks have different networks.
 template <class V>
 NRAD_ALWAYS_INLINE inline void toRadianceTwo(const NetworkView& a, const NetworkView& b, typename V::F out[2][kOutputs]) {
     using F = typename V::F;
@@ -95,7 +95,7 @@ NRAD_ALWAYS_INLINE inline void evalNetwork(const NetworkView& net, const typenam
     if (!(net.hiddenLayers == 1 && net.hiddenWidths[0] == 9)) return evalNetworkGeneric<V>(net, in, out);
     // The default topology, 9-9-3, every size known at compile time: everything stays in registers, and
     // each hidden unit feeds the outputs as soon as it is computed. Two partial sums per hidden unit halve its
-    // chain of dependent multiply-adds (with 16 vector registers: 1.05x AVX2's coherent batch rate); with 32, two
+    // chain of dependent multiply-adds (with 16 vector registers too: docs/design.md); with 32, two
     // per output too (with 16 those would spill).
     const F zero = V::zero();
     const float* W1 = net.params;
