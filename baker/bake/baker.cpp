@@ -46,6 +46,8 @@ LeafScorer briefTrainingScorer(const std::vector<TrainingSample>& samples, const
     quick.epochs = std::min(quick.epochs, 150);
     quick.patience = std::min(quick.patience, 50);
     quick.weightDecays.resize(1);
+    quick.restarts = 1;  // a brief score, not a network to keep
+    quick.raceEpochs = 0;
     quick.maxAttempts = 1;
     quick.curveEvery = 1 << 30;
     return [&samples, quick, group](const std::vector<uint32_t>& ids, const std::vector<const std::vector<uint32_t>*>& sets) {
@@ -305,6 +307,7 @@ TrainSettings startTrainSettings(const BakeSettings& settings) {
         start.patience = std::min(start.patience, settings.integral.startPatience);
         if (start.weightDecays.size() > 1) start.weightDecays.resize(1);
         start.restarts = settings.integral.restarts();
+        start.raceEpochs = 0;  // the start's restarts (IntegralSettings) each train to their end, as they were measured
     }
     return start;
 }
@@ -732,6 +735,7 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
     j["scene_hash"] = hash;
     const SampleSettings& s = settings.samples;
     const TrainSettings& t = settings.train;
+    const TrainSettings first = startTrainSettings(settings);  // the networks' first training (integral: its start)
     j["bake"] = {{"grid", {settings.grid.x, settings.grid.y, settings.grid.z}},
                  {"points", s.points},
                  {"paths", s.paths},
@@ -745,10 +749,12 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"demodulated", t.demodulate},
                  {"blend_band", settings.blendBand},
                  {"weight_decays", t.weightDecays},
-                 {"race_epochs", t.weightDecays.size() > 1 ? t.raceEpochs : 0},
+                 {"race_epochs", first.weightDecays.size() * size_t(std::max(1, first.restarts)) > 1 ? first.raceEpochs : 0},
                  {"epoch_average", t.epochAverage},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
+    if (settings.training == TrainingMethod::MonteCarlo && t.restarts != 1)
+        j["bake"]["restarts"] = t.restarts;  // only then: assets of one start keep their bytes
     if (settings.training == TrainingMethod::Integral) {  // only then, so that Monte Carlo assets keep their bytes
         const IntegralSettings& in = settings.integral;
         j["bake"]["training"] = {{"method", trainingMethodName(settings.training)},

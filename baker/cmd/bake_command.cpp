@@ -88,7 +88,7 @@ struct BakeOptions {
     uint32_t minSamples = defaults().samples.minSamplesPerVoxel, noisyPaths = defaults().samples.extraPathsFactor;
     std::string nee = neeModeName(defaults().nee.mode);
     int maxDepth = defaults().samples.maxDepth, epochs = defaults().train.epochs, batch = defaults().train.batchSize;
-    int patience = defaults().train.patience, raceEpochs = defaults().train.raceEpochs;
+    int patience = defaults().train.patience, raceEpochs = defaults().train.raceEpochs, restarts = defaults().train.restarts;
     float learningRate = defaults().train.learningRate, blendBand = defaults().blendBand;
     float epochAverage = defaults().train.epochAverage;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
@@ -226,9 +226,12 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--weight-decay", &o.weightDecay,
           "L2 penalties to choose from per voxel by held-out error, each divided by the voxel's training samples; "
           "0 = unregularised");
+    t.add("--restarts", &o.restarts,
+          "Initialisations of each network per --weight-decay value, the lowest held-out error kept (1 to 64; integral "
+          "training's start: --start-restarts)");
     t.add("--race-epochs", &o.raceEpochs,
-          "With several --weight-decay values: after this many epochs the one with the lowest held-out error so far trains "
-          "on alone; 0 = each trains to its end");
+          "With several candidates per network (--weight-decay values x --restarts): after this many epochs the one with "
+          "the lowest held-out error so far trains on alone; 0 = each trains to its end");
     t.add("--epoch-average", &o.epochAverage,
           "Decay per epoch (0 to 0.99) of the parameters' moving average that each epoch's held-out check judges and the "
           "training keeps; 0 = the parameters themselves");
@@ -289,6 +292,7 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     if (o.noisyPaths < 1 || o.noisyPaths > 64) return usage("--noisy-paths: expected 1 (off) to 64");
     if (o.epochs < 1 || o.batch < 1 || o.patience < 1 || o.maxDepth < 0 || !(o.learningRate > 0.0f) || o.raceEpochs < 0)
         return usage("--epochs, --batch-size, --patience and --learning-rate must be positive, --max-depth and --race-epochs >= 0");
+    if (o.restarts < 1 || o.restarts > 64) return usage("--restarts must be 1 to 64");
     if (!(o.epochAverage >= 0.0f && o.epochAverage <= 0.99f)) return usage("--epoch-average must be between 0 and 0.99");
     if (!(o.blendBand >= 0.0f && o.blendBand <= format::kMaxBlendBand))
         return usage("--blend-band: expected 0 (no blending) to 0.5 voxels");
@@ -349,6 +353,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.train.batchSize = o.batch;
     s.train.patience = o.patience;
     s.train.raceEpochs = o.raceEpochs;
+    s.train.restarts = o.restarts;
     s.train.epochAverage = o.epochAverage;
     s.train.learningRate = o.learningRate;
     s.train.seed = o.seed;

@@ -5,7 +5,8 @@
 //   evaluations/s is FMA lanes/s / 108.
 // - Network evaluations/s through the public API (nradEvaluateBatch, 64k points per call) on a 3x3x3
 //   asset of 9-9-3 fp16 networks, for coherent batches (points sorted by voxel) and incoherent ones
-//   (random voxels), per kernel, on 1 thread and on all threads; printed as a fraction of the peak.
+//   (random voxels), per kernel, on 1 thread and on all threads; printed as a fraction of the peak. Coherent
+//   batches also through nradEvaluateBatchSoA ("coh. SoA": the same points as nine arrays, nothing to deinterleave).
 // - The volume query (nradEvaluateVolumeBatch: the light in the volume, issue 42) on the same points, as a multiple
 //   of the surface evaluation's cost.
 // - What engines do today, next to it: a trilinear lookup in a grid of L2 spherical-harmonics radiance
@@ -74,8 +75,27 @@ Points makePoints(size_t count, bool coherent, const nrad::format::Grid& g, uint
     return pts;
 }
 
-// volume: nradEvaluateVolumeBatch (the light in the volume at the points and normals) instead of nradEvaluateBatch.
-double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int repeat, bool volume = false) {
+// The points as nradEvaluateBatchSoA's nine arrays (and three for the output).
+struct SoaPoints {
+    std::vector<float> a[9];
+};
+SoaPoints toSoa(const Points& pts) {
+    SoaPoints s;
+    const size_t count = pts.p.size() / 3;
+    const std::vector<float>* src[3] = {&pts.p, &pts.n, &pts.d};
+    for (int v = 0; v < 3; ++v)
+        for (int k = 0; k < 3; ++k) {
+            std::vector<float>& a = s.a[3 * v + k];
+            a.resize(count);
+            for (size_t i = 0; i < count; ++i) a[i] = (*src[v])[3 * i + size_t(k)];
+        }
+    return s;
+}
+
+// volume: nradEvaluateVolumeBatch (the light in the volume at the points and normals) instead of nradEvaluateBatch;
+// soa: nradEvaluateBatchSoA on these arrays instead.
+double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int repeat, bool volume = false,
+                            const SoaPoints* soa = nullptr) {
     const size_t count = pts.p.size() / 3, batch = 65536;
     // One thread runs in the caller: a new thread per repetition cost up to 10-15% of a run of --points 65536.
     std::vector<std::vector<float>> out(size_t(threads), std::vector<float>(3 * batch, 0.0f));
@@ -85,7 +105,15 @@ double evaluationsPerSecond(NradAsset asset, const Points& pts, int threads, int
         auto work = [&](int t) {
             for (size_t b; (b = next.fetch_add(batch)) < count;) {
                 size_t n = std::min(batch, count - b);
-                if (volume) nradEvaluateVolumeBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], out[size_t(t)].data(), nullptr);
+                if (soa) {
+                    float* o = out[size_t(t)].data();
+                    NradBatchSoA q{};
+                    q.px = &soa->a[0][b], q.py = &soa->a[1][b], q.pz = &soa->a[2][b];
+                    q.nx = &soa->a[3][b], q.ny = &soa->a[4][b], q.nz = &soa->a[5][b];
+                    q.dx = &soa->a[6][b], q.dy = &soa->a[7][b], q.dz = &soa->a[8][b];
+                    q.r = o, q.g = o + batch, q.b = o + 2 * batch;
+                    nradEvaluateBatchSoA(asset, n, &q);
+                } else if (volume) nradEvaluateVolumeBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], out[size_t(t)].data(), nullptr);
                 else nradEvaluateBatch(asset, n, &pts.p[3 * b], &pts.n[3 * b], &pts.d[3 * b], out[size_t(t)].data(), nullptr);
             }
         };
@@ -197,6 +225,7 @@ int main(int argc, char** argv) {
     std::printf("runtime_bench: %zu points, 3x3x3 voxels of 9-9-3 fp16 (%.0f bytes of weights), blend band %g, %d hardware threads\n",
                 points, networkBytes, double(band), hw);
     Points coherent = makePoints(points, true, a.grid, 2), incoherent = makePoints(points, false, a.grid, 3);
+    const SoaPoints coherentSoa = toSoa(coherent);
     for (int threads : {1, hw}) {
         if (treeOnly) break;
         // The peak of the widest vectors this CPU has, and of AVX2's, measured now; each kernel is also
@@ -217,6 +246,9 @@ int main(int argc, char** argv) {
                 std::printf("  %-8s %-11s %14.1f %9.1f%% %13.1f%%\n", name, coh ? "coherent" : "incoherent", e * 1e-6,
                             100.0 * e * 108.0 / peak, 100.0 * e * 108.0 / own);
             }
+            const double e = evaluationsPerSecond(asset, coherent, threads, repeat, false, &coherentSoa);
+            std::printf("  %-8s %-11s %14.1f %9.1f%% %13.1f%%\n", name, "coh. SoA", e * 1e-6, 100.0 * e * 108.0 / peak,
+                        100.0 * e * 108.0 / own);
         }
         nradSelectKernel(NRAD_KERNEL_AUTO);
         // The volume query against the surface evaluation, same kernel (the best), same points (goal: <= 2x the cost).

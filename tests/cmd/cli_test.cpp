@@ -244,7 +244,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
         "epochs": 10, "batch_size": 64, "patience": 50, "learning_rate": 0.02, "loss": "l2", "encoding": "fp32",
         "min_samples_per_voxel": 32, "training": "integral", "generations": 3, "generation_points": 1000,
         "generation_paths": 4, "generation_epochs": 2, "generation_lr": "0.02,0.001", "average_decay": 0.5,
-        "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "race_epochs": 50, "epoch_average": 0.5,
+        "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "restarts": 2, "race_epochs": 50, "epoch_average": 0.5,
         "blend_band": 0.125,
         "budget": "64K", "levels": 5, "min_leaf_samples": 64, "volume_points": 300, "volume_paths": 8, "volume_glossy": true, "seed": 7, "max_texture_pixels": 1000, "max_triangles": 1000,
         "metadata": false, "wall_splits": false, "demodulate": false, "environment": "0.5,0.5,0.5",
@@ -317,7 +317,8 @@ TEST(CliBake, BadFlagsAndScenesWriteNothing) {
                               "--training integral --bounces 9", "--training integral --generation-epochs 0",
                               "--training integral --generation-lr 0.01", "--training integral --generation-lr 0.01,-1",
                               "--training integral --average-decay 1", "--training integral --start-epochs 0",
-                              "--training integral --start-restarts -1", "--training integral --start-restarts 65"}) {
+                              "--training integral --start-restarts -1", "--training integral --start-restarts 65",
+                              "--restarts 0", "--restarts 65"}) {
         RunResult r = run("bake " + cornell() + out + " " + flags);
         EXPECT_EQ(r.exitCode, 2) << flags << ": " << r.output;
     }
