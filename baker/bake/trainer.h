@@ -44,13 +44,15 @@ struct TrainSettings {
     // Initialisations per weight decay: each trains from its own random start and the lowest held-out error
     // wins (1: one, the first). Three by default: which sharp feature a network of nine hidden units catches
     // depends on its start, and one start per decay left a dark room's floor a block 22% too bright beside
-    // a doorway's light for one seed in three, at two grids (docs/results.md, docs/training.md).
+    // a doorway's light for one seed in three, at two grids (docs/results.md, docs/training.md). Where few or noisy
+    // held-out samples judge the six candidates (a 64 KB kd-tree's networks, the glossy box) the choice fits their
+    // noise and came out worse: a selection split apart from the stopping split is open work.
     int restarts = 3;
     // With more than one candidate (weight decays x restarts): after this many epochs the candidate with the lowest
     // held-out error so far wins and trains on alone; the others stop there (0: every candidate trains to its end
     // and the lowest final held-out error wins). 0 by default: a race among the six candidates of three starts, at
-    // 200 epochs, took the furnace's worst error at albedo 0.99 from 1.2% to 10.4% (its decays' order at epoch
-    // 200 is not their order at the end), at 100 and 50 it picked worse on the doorway scene (docs/training.md).
+    // 200 epochs, took the furnace's worst error at albedo 0.99 from 1.2% to 10.4% (the candidate ahead at
+    // epoch 200 is not the one that ends best), at 100 and 50 it picked worse on the doorway scene (docs/training.md).
     int raceEpochs = 0;
     // Each epoch's held-out check judges, and the training keeps, a moving average of the parameters over the epochs
     // instead of the parameters themselves: with noisy targets the optimiser's parameters wander about the fit by its
