@@ -75,7 +75,7 @@ Points makePoints(size_t count, bool coherent, const nrad::format::Grid& g, uint
     return pts;
 }
 
-// The points as nradEvaluateBatchSoA's nine arrays (and three for the output).
+// The points as nradEvaluateBatchSoA's nine input arrays.
 struct SoaPoints {
     std::vector<float> a[9];
 };
@@ -241,14 +241,13 @@ int main(int argc, char** argv) {
             if (nradSelectKernel(k) != NRAD_OK) continue;
             const char* name = k == NRAD_KERNEL_SCALAR ? "scalar" : k == NRAD_KERNEL_AVX2 ? "avx2" : "avx512";
             const double own = k == NRAD_KERNEL_AVX512 ? peak : peak256;
-            for (int coh = 1; coh >= 0; --coh) {
-                double e = evaluationsPerSecond(asset, coh ? coherent : incoherent, threads, repeat);
-                std::printf("  %-8s %-11s %14.1f %9.1f%% %13.1f%%\n", name, coh ? "coherent" : "incoherent", e * 1e-6,
-                            100.0 * e * 108.0 / peak, 100.0 * e * 108.0 / own);
-            }
-            const double e = evaluationsPerSecond(asset, coherent, threads, repeat, false, &coherentSoa);
-            std::printf("  %-8s %-11s %14.1f %9.1f%% %13.1f%%\n", name, "coh. SoA", e * 1e-6, 100.0 * e * 108.0 / peak,
-                        100.0 * e * 108.0 / own);
+            auto row = [&](const char* batch, double e) {
+                std::printf("  %-8s %-11s %14.1f %9.1f%% %13.1f%%\n", name, batch, e * 1e-6, 100.0 * e * 108.0 / peak,
+                            100.0 * e * 108.0 / own);
+            };
+            row("coherent", evaluationsPerSecond(asset, coherent, threads, repeat));
+            row("incoherent", evaluationsPerSecond(asset, incoherent, threads, repeat));
+            row("coh. SoA", evaluationsPerSecond(asset, coherent, threads, repeat, false, &coherentSoa));
         }
         nradSelectKernel(NRAD_KERNEL_AUTO);
         // The volume query against the surface evaluation, same kernel (the best), same points (goal: <= 2x the cost).
