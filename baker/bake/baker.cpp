@@ -749,12 +749,13 @@ std::string assetMetadata(const Scene& scene, const BakeSettings& settings, cons
                  {"demodulated", t.demodulate},
                  {"blend_band", settings.blendBand},
                  {"weight_decays", t.weightDecays},
-                 {"race_epochs", first.weightDecays.size() * size_t(std::max(1, first.restarts)) > 1 ? first.raceEpochs : 0},
+                 {"race_epochs", raced(first) ? first.raceEpochs : 0},
                  {"epoch_average", t.epochAverage},
                  {"environment", environmentMetadata(scene.environment)},
                  {"lighting", settings.lightingJson.empty() ? nlohmann::json::object() : nlohmann::json::parse(settings.lightingJson)}};
     if (settings.training == TrainingMethod::MonteCarlo && t.restarts != 1)
         j["bake"]["restarts"] = t.restarts;  // only then: assets of one start keep their bytes
+    if (raced(first) && first.raceAll) j["bake"]["race_all"] = true;  // only then
     if (settings.training == TrainingMethod::Integral) {  // only then, so that Monte Carlo assets keep their bytes
         const IntegralSettings& in = settings.integral;
         j["bake"]["training"] = {{"method", trainingMethodName(settings.training)},

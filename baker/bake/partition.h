@@ -23,7 +23,11 @@ namespace nrad {
 
 struct PartitionSettings {
     uint64_t budgetBytes = 0;  // 0: no tree, the uniform grid of BakeSettings::grid
-    uint32_t levels = 7;  // the lattice: 2^levels voxels along the scene's longest axis, the others in proportion
+    // The lattice: 2^levels voxels along the scene's longest axis, the others in proportion. 10 (the format's largest,
+    // kMaxGridDim): where a plane can only fall on a coarser lattice, the leaf beside a 2 cm wall kept a strip of the
+    // other room, and at 64 KB the doorway scene's dark floor along the wall came out a block 25% too bright (levels 7;
+    // docs/results.md).
+    uint32_t levels = 10;
     uint32_t minLeafSamples = 256;  // samples a leaf with surface keeps at least (of its own, inside it)
     // With a scorer (the baker's): the share of the budget's networks placed by the residual alone; the rest
     // goes, a quarter of the open leaves per round, to the leaves whose briefly trained networks err most.

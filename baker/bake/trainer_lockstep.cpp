@@ -341,7 +341,8 @@ public:
         const std::vector<float> none = {0.0f};
         const std::vector<float>& decays = settings.weightDecays.empty() ? none : settings.weightDecays;
         const size_t restarts = size_t(std::max(1, settings.restarts)), perVoxel = decays.size() * restarts;
-        racing_ = perVoxel > 1 && settings.raceEpochs > 0;
+        raceGroup_ = raceGroup(settings);
+        racing_ = raced(settings);
         std::vector<size_t> order(voxels.size());
         for (size_t k = 0; k < order.size(); ++k) order[k] = k;
         std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return samples[a]->size() > samples[b]->size(); });
@@ -384,6 +385,8 @@ private:
         std::vector<std::unique_ptr<Training>> held;
         bool decided = false;
         double losersSeconds = 0.0;
+        size_t awaiting = 0;  // race winners still training
+        std::vector<std::pair<size_t, VoxelTrainResult>> winners;  // race winners ended, with their slots
     };
 
     // The next training for a lane: a race's winner to resume, else the next job.
@@ -412,15 +415,26 @@ private:
         if (onDone_) onDone_();
     }
 
-    // A training that ended or paused at the race: the voxel's result once every candidate has, or the race's
-    // winner back to the lanes.
+    // Results in their candidates' order (as they ended, they are in no fixed order), so that a tie goes the same way.
+    static std::vector<VoxelTrainResult> inSlotOrder(std::vector<std::pair<size_t, VoxelTrainResult>> ended) {
+        std::sort(ended.begin(), ended.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+        std::vector<VoxelTrainResult> out;
+        for (auto& e : ended) out.push_back(std::move(e.second));
+        return out;
+    }
+
+    // A training that ended or paused at the race: the voxel's result once every candidate has (or every race winner,
+    // after the race), or the race's winners back to the lanes.
     void settle(Held h) {
         Candidates& c = candidates_[h.voxel];
         std::unique_lock<std::mutex> lock(c.mutex);
-        if (c.decided) {  // the race's winner, ended
+        if (c.decided) {  // a race's winner, ended
+            c.winners.emplace_back(h.slot, h.training->takeResult());
+            if (--c.awaiting > 0) return;
             const double extra = c.losersSeconds;
+            std::vector<VoxelTrainResult> winners = inSlotOrder(std::move(c.winners));
             lock.unlock();
-            return finalize(h.voxel, {h.training->takeResult()}, extra);
+            return finalize(h.voxel, std::move(winners), extra);
         }
         c.held[h.slot] = std::move(h.training);
         if (--c.pending > 0) return;
@@ -431,19 +445,36 @@ private:
             for (std::unique_ptr<Training>& t : held) results.push_back(t->takeResult());
             return finalize(h.voxel, std::move(results), 0.0);
         }
-        // The race: the lowest held-out error so far wins (the first on a tie); the others stop here.
-        size_t winner = 0;
-        for (size_t k = 1; k < held.size(); ++k)
-            if (held[k]->raceError() < held[winner]->raceError()) winner = k;
-        for (size_t k = 0; k < held.size(); ++k)
-            if (k != winner) c.losersSeconds += held[k]->seconds();
+        // The race: among each weight decay's starts (or every candidate: raceAll) the lowest held-out error so far wins
+        // (the first on a tie); the others stop here. The winners train on to their ends and are compared there.
+        std::vector<size_t> winners;
+        for (size_t g = 0; g < held.size(); g += raceGroup_) {
+            size_t winner = g;
+            for (size_t k = g + 1; k < g + raceGroup_; ++k)
+                if (held[k]->raceError() < held[winner]->raceError()) winner = k;
+            for (size_t k = g; k < g + raceGroup_; ++k)
+                if (k != winner) c.losersSeconds += held[k]->seconds();
+            winners.push_back(winner);
+        }
         c.decided = true;
-        const double extra = c.losersSeconds;
+        std::vector<size_t> running;
+        for (size_t w : winners) {
+            if (held[w]->done()) c.winners.emplace_back(w, held[w]->takeResult());
+            else running.push_back(w);
+        }
+        c.awaiting = running.size();
+        if (running.empty()) {
+            std::vector<VoxelTrainResult> ended = inSlotOrder(std::move(c.winners));
+            const double extra = c.losersSeconds;
+            lock.unlock();
+            return finalize(h.voxel, std::move(ended), extra);
+        }
         lock.unlock();
-        if (held[winner]->done()) return finalize(h.voxel, {held[winner]->takeResult()}, extra);
-        held[winner]->resume();
         std::lock_guard<std::mutex> readyLock(readyMutex_);
-        ready_.push_back({std::move(held[winner]), h.voxel, winner});
+        for (size_t w : running) {
+            held[w]->resume();
+            ready_.push_back({std::move(held[w]), h.voxel, w});
+        }
     }
 
     // One group of lanes: takes trainings until none is left, stepping all its busy lanes together.
@@ -499,6 +530,7 @@ private:
     const TrainSettings& settings_;
     const std::function<void()>& onDone_;
     bool racing_ = false;
+    size_t raceGroup_ = 1;  // candidates a race compares: a weight decay's starts, or all of a voxel's (raceAll)
     std::vector<Job> jobs_;
     std::vector<Candidates> candidates_;
     std::vector<VoxelTrainResult> out_;

@@ -95,7 +95,7 @@ struct BakeOptions {
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
     uint32_t levels = defaults().partition.levels, minLeafSamples = defaults().partition.minLeafSamples;
     uint32_t volumePoints = 0, volumePaths = defaults().volume.paths;  // 0 points: no volume networks
-    bool volumeGlossy = false;
+    bool volumeGlossy = false, raceAll = defaults().train.raceAll;
     bool noMetadata = !defaults().metadata, noDemodulate = !defaults().train.demodulate, noWallSplits = !defaults().walls.enabled;
     LightingOptions lighting = bakeLighting();
     std::string training = trainingMethodName(defaults().training);
@@ -230,8 +230,11 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
           "Initialisations of each network per --weight-decay value, the lowest held-out error kept (1 to 64; integral "
           "training's start: --start-restarts)");
     t.add("--race-epochs", &o.raceEpochs,
-          "With several candidates per network (--weight-decay values x --restarts): after this many epochs the one with "
-          "the lowest held-out error so far trains on alone; 0 = each trains to its end");
+          "With several --restarts: after this many epochs each --weight-decay value's start with the lowest held-out "
+          "error so far trains on alone, the others stop, and the decays' survivors are compared at their ends; "
+          "0 = every candidate trains to its end");
+    t.add("--race-all", &o.raceAll,
+          "The race compares every candidate (--weight-decay values x --restarts) instead of each decay's starts");
     t.add("--epoch-average", &o.epochAverage,
           "Decay per epoch (0 to 0.99) of the parameters' moving average that each epoch's held-out check judges and the "
           "training keeps; 0 = the parameters themselves");
@@ -353,6 +356,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.train.batchSize = o.batch;
     s.train.patience = o.patience;
     s.train.raceEpochs = o.raceEpochs;
+    s.train.raceAll = o.raceAll;
     s.train.restarts = o.restarts;
     s.train.epochAverage = o.epochAverage;
     s.train.learningRate = o.learningRate;

@@ -244,7 +244,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
         "epochs": 10, "batch_size": 64, "patience": 50, "learning_rate": 0.02, "loss": "l2", "encoding": "fp32",
         "min_samples_per_voxel": 32, "training": "integral", "generations": 3, "generation_points": 1000,
         "generation_paths": 4, "generation_epochs": 2, "generation_lr": "0.02,0.001", "average_decay": 0.5,
-        "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "restarts": 2, "race_epochs": 50, "epoch_average": 0.5,
+        "start_epochs": 100, "start_restarts": 2, "bounces": 1, "weight_decay": "0,1", "restarts": 2, "race_epochs": 50, "race_all": true, "epoch_average": 0.5,
         "blend_band": 0.125,
         "budget": "64K", "levels": 5, "min_leaf_samples": 64, "volume_points": 300, "volume_paths": 8, "volume_glossy": true, "seed": 7, "max_texture_pixels": 1000, "max_triangles": 1000,
         "metadata": false, "wall_splits": false, "demodulate": false, "environment": "0.5,0.5,0.5",

@@ -334,10 +334,18 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
         ids.push_back(uint32_t(v));
         sets.push_back(&entries[v]);
     }
-    // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free);
-    // the parameters themselves judged each epoch, and their epoch average (the default).
-    for (const auto& [race, average] : {std::pair<int, float>{0, 0.0f}, {10, 0.0f}, {0, 0.9f}, {10, 0.9f}}) {
+    // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free)
+    // within each weight decay's starts (the default) and among all four candidates; the parameters themselves judged
+    // each epoch, and their epoch average (the default).
+    struct Case {
+        int race;
+        float average;
+        bool all;
+    };
+    for (const auto& [race, average, all] : {Case{0, 0.0f, false}, Case{10, 0.0f, false}, Case{10, 0.0f, true}, Case{0, 0.9f, false},
+                                            Case{10, 0.9f, false}, Case{10, 0.9f, true}}) {
         settings.raceEpochs = race;
+        settings.raceAll = all;
         settings.epochAverage = average;
         // The average's error falls more smoothly: longer and less patient, so that some stop early.
         settings.epochs = average > 0.0f ? 200 : 60;
@@ -353,7 +361,7 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
             for (size_t v = 0; v < alone.size(); ++v) {
                 EXPECT_EQ(together[v].voxel, uint32_t(v));
                 EXPECT_EQ(together[v].params, alone[v].params)
-                    << "voxel " << v << ", " << threads << " threads, race " << race << ", average " << average;
+                    << "voxel " << v << ", " << threads << " threads, race " << race << (all ? " (all)" : "") << ", average " << average;
                 EXPECT_EQ(together[v].heldOutRelMse, alone[v].heldOutRelMse);
                 EXPECT_EQ(together[v].epochs, alone[v].epochs);
                 EXPECT_EQ(together[v].weightDecay, alone[v].weightDecay);
@@ -366,8 +374,9 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
     }
 }
 
-// The race (TrainSettings::raceEpochs): the candidate with the lowest held-out error in its first 20 epochs (its
-// curve, recorded every epoch) trains on alone and ends exactly as it does trained alone to its end.
+// The race among all candidates (TrainSettings::raceEpochs, raceAll): the candidate with the lowest held-out error in
+// its first 20 epochs (its curve, recorded every epoch) trains on alone and ends exactly as it does trained alone to
+// its end.
 TEST(Trainer, RaceKeepsTheCandidateAheadAtItsEpochTrainedToItsEnd) {
     const VoxelGrid grid = unitVoxel();
     const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 600);
@@ -378,6 +387,7 @@ TEST(Trainer, RaceKeepsTheCandidateAheadAtItsEpochTrainedToItsEnd) {
     settings.curveEvery = 1;
     settings.weightDecays = {0.0f, 40.0f, 400.0f};
     settings.restarts = 1;  // one start per decay (the default is 3)
+    settings.raceAll = true;
     std::vector<VoxelTrainResult> alone;
     size_t ahead = 0;
     std::vector<double> atRace;
@@ -401,6 +411,38 @@ TEST(Trainer, RaceKeepsTheCandidateAheadAtItsEpochTrainedToItsEnd) {
     EXPECT_LE(trainVoxel(grid, 0, ptrs, settings).heldOutRelMse, raced.heldOutRelMse);
     // The decays lead by different amounts at epoch 20: the race compared something.
     EXPECT_NE(atRace[0], atRace[2]);
+}
+
+// The race within each weight decay (the default): a decay's starts race at epoch 20 as all candidates of that decay
+// alone would (raceAll with the one decay), and the decays' survivors are compared at their ends: the two-decay race
+// keeps the lower final held-out error of the two one-decay races, bit for bit.
+TEST(Trainer, RaceWithinEachDecayComparesTheDecaysAtTheirEnds) {
+    const VoxelGrid grid = unitVoxel();
+    const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 600);
+    const std::vector<const TrainingSample*> ptrs = pointersTo(samples);
+    TrainSettings settings;
+    settings.epochs = 80;
+    settings.patience = 80;
+    settings.weightDecays = {0.0f, 400.0f};
+    settings.restarts = 3;
+    settings.raceEpochs = 20;
+    std::vector<VoxelTrainResult> perDecay;
+    bool raceMattered = false;
+    for (float decay : settings.weightDecays) {
+        TrainSettings one = settings;
+        one.weightDecays = {decay};
+        perDecay.push_back(trainVoxel(grid, 0, ptrs, one));
+        one.raceAll = true;  // one decay: the same race
+        EXPECT_EQ(trainVoxel(grid, 0, ptrs, one).params, perDecay.back().params);
+        one.raceEpochs = 0;
+        raceMattered = raceMattered || trainVoxel(grid, 0, ptrs, one).params != perDecay.back().params;
+    }
+    const VoxelTrainResult both = trainVoxel(grid, 0, ptrs, settings);
+    const size_t better = perDecay[1].heldOutRelMse < perDecay[0].heldOutRelMse ? 1 : 0;
+    EXPECT_EQ(both.params, perDecay[better].params);
+    EXPECT_EQ(both.weightDecay, settings.weightDecays[better]);
+    EXPECT_EQ(both.heldOutRelMse, perDecay[better].heldOutRelMse);
+    EXPECT_TRUE(raceMattered) << "the start ahead at epoch 20 ended best in both decays: the race chose nothing here";
 }
 
 // Grey where grey (TrainSettings::greyWhereGrey): trained on grey targets, a network's three outputs are equal
