@@ -51,12 +51,11 @@ struct TrainSettings {
     int restarts = 3;
     // The race: after this many epochs the starts of each weight decay are compared by their lowest held-out error so
     // far; the one ahead trains on to its end and the others stop there; the decays' survivors are compared at their
-    // ends (0: every candidate trains to its end). 100 by default: about half the training of six candidates to their
-    // ends, with the doorway's and the sky room's blocks within their goals and the plain box 1-4% above, the glossy
-    // box 9% below (docs/training.md). With raceAll every candidate races every other, the decays included: at 200
-    // epochs that took the furnace's worst error at albedo 0.99 from 1.2% to 10.4% (the decay ahead at epoch 200 is
-    // not the one that ends best); within the decays it reads 5.1% at 100.
-    int raceEpochs = 100;
+    // ends (0: every candidate trains to its end). 0 by default: at 100 the training takes about half as long, but the
+    // furnace's worst error at albedo 0.99 went from 1.2% to 5.1% and the doorway's worst block at grid 4 from 7.4-10.3%
+    // to 10.7-11.8% (docs/training.md). With raceAll every candidate races every other, the decays included: at 200
+    // epochs that took the furnace to 10.4% (the decay ahead at epoch 200 is not the one that ends best).
+    int raceEpochs = 0;
     bool raceAll = false;
     // Each epoch's held-out check judges, and the training keeps, a moving average of the parameters over the epochs
     // instead of the parameters themselves: with noisy targets the optimiser's parameters wander about the fit by its

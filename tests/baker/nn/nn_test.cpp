@@ -335,7 +335,7 @@ TEST(Trainer, VoxelsTrainedTogetherAreEachTrainedAloneBitForBit) {
         sets.push_back(&entries[v]);
     }
     // Every candidate to its end, and a race after 10 epochs (the winners paused, resumed in whatever lane is free)
-    // within each weight decay's starts (the default) and among all four candidates; the parameters themselves judged
+    // within each weight decay's starts and among all four candidates; the parameters themselves judged
     // each epoch, and their epoch average (the default).
     struct Case {
         int race;
@@ -413,9 +413,9 @@ TEST(Trainer, RaceKeepsTheCandidateAheadAtItsEpochTrainedToItsEnd) {
     EXPECT_NE(atRace[0], atRace[2]);
 }
 
-// The race within each weight decay (the default): a decay's starts race at epoch 20 as all candidates of that decay
-// alone would (raceAll with the one decay), and the decays' survivors are compared at their ends: the two-decay race
-// keeps the lower final held-out error of the two one-decay races, bit for bit.
+// The race within each weight decay (--race-epochs without --race-all): a decay's starts race at epoch 20 as all
+// candidates of that decay alone would (raceAll with the one decay), and the decays' survivors are compared at their
+// ends: the two-decay race keeps the lower final held-out error of the two one-decay races, bit for bit.
 TEST(Trainer, RaceWithinEachDecayComparesTheDecaysAtTheirEnds) {
     const VoxelGrid grid = unitVoxel();
     const std::vector<TrainingSample> samples = makeSamples(grid, smooth, 600);
