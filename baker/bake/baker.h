@@ -118,12 +118,15 @@ struct BakeProgress {
 // The settings' automatic values, where SampleSettings' points or paths are 0 (what `nrad bake` and every
 // library caller get alike):
 // - paths: kMonteCarloPaths, or kIntegralStartPaths for the Monte Carlo start of integral training;
-// - points: with a budget, kPointsPerNetwork for every network it pays for; integral training on a grid,
-//   kIntegralPointsPerCell per cell (at least kIntegralMinPoints); a Monte Carlo grid, kBasePoints per 27 cells
-//   (at least kBasePoints: fewer per cell make each network a block of its own noise, docs/results.md);
+// - points: a Monte Carlo grid, kBasePoints per 27 cells (at least kBasePoints: fewer per cell make each network a
+//   block of its own noise, docs/results.md); with a budget, as many for every network it pays for
+//   (kPointsPerNetwork: a tree's leaves as densely sampled as a grid's cells, so that a finer asset is not a
+//   noisier one: at 1,500 a network, the doorway scene's 64 KB tree had 3.6x fewer samples than grid 6 and more
+//   error); integral training on a grid, kIntegralPointsPerCell per cell (at least kIntegralMinPoints);
 //   at most kMaxAutomaticPoints, so that a large bake stays in minutes.
 constexpr uint32_t kMonteCarloPaths = 32, kIntegralStartPaths = 4;
-constexpr uint32_t kBasePoints = 160000, kPointsPerNetwork = 1500, kIntegralPointsPerCell = 1500, kIntegralMinPoints = 40000;
+constexpr uint32_t kBasePoints = 160000, kPointsPerNetwork = kBasePoints / 27, kIntegralPointsPerCell = 1500,
+                   kIntegralMinPoints = 40000;
 constexpr uint32_t kMaxAutomaticPoints = 4000000;
 BakeSettings resolvedBakeSettings(BakeSettings settings);
 // The samples of a bake at the defaults, resolved (what validate's baseline falls back on).

@@ -64,8 +64,8 @@ TEST(Bake, AutomaticPointsAndPathsFollowTheOtherSettings) {
     s.grid = glm::uvec3(2);
     EXPECT_EQ(resolvedBakeSettings(s).samples.points, 40000u);
     s.training = TrainingMethod::MonteCarlo;
-    s.partition.budgetBytes = 256 << 10;  // 9-9-3 in fp16: 120 x 2 + 40 bytes a network, 936 of them
-    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 936u * 1500);
+    s.partition.budgetBytes = 64 << 10;  // 9-9-3 in fp16: 120 x 2 + 40 bytes a network, 234 of them
+    EXPECT_EQ(resolvedBakeSettings(s).samples.points, 234u * (160000 / 27));  // a grid cell's density per network
     s.partition.budgetBytes = 1 << 20;
     EXPECT_EQ(resolvedBakeSettings(s).samples.points, 4000000u);  // the cap
     s.samples.points = 1234;  // given: kept
