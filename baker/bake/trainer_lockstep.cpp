@@ -34,54 +34,75 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// What a voxel's candidates share, prepared once for all of them (and freed when the last of them ends): the
+// samples packed for the lanes, the held-out samples as each epoch's check reads them, the voxel's scale. Six
+// candidates a voxel train at once in neighbouring lanes, and each had its own copy (a 1 MB zdm2 bake's largest
+// voxels hold 30,000-67,000 samples: 64 bytes a sample packed).
+struct VoxelData {
+    std::vector<size_t> train;  // the training samples' indices (PreparedSamples::train)
+    std::vector<float> packed, heldOutInputs, heldOutTerms;
+    size_t heldOutCount = 0;
+    double weightSum = 0.0, heldOutWeight = 0.0;
+    float scale = 1.0f, invScale = 1.0f;
+    bool allZero = false;  // every target zero
+
+    VoxelData(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
+        const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
+        train = d.train;
+        heldOutCount = d.heldOut.size();
+        // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
+        double meanLum = 0.0;
+        for (size_t i : d.train) {
+            meanLum += double(d.blend(i)) * std::max(0.0f, luminancef(d.targets[i]));
+            weightSum += double(d.blend(i));
+        }
+        meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;
+        scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
+        invScale = 1.0f / scale;
+        // Each sample packed for the lanes: inputs, loss targets, loss weights.
+        const size_t nIn = size_t(settings.shape.inputs);
+        packed.assign(d.targets.size() * kPackedFloats, 0.0f);
+        for (size_t i = 0; i < d.targets.size(); ++i) {
+            float* row = &packed[i * kPackedFloats];
+            std::copy_n(&d.inputs[i * nIn], nIn, row);
+            for (int c = 0; c < 3; ++c) {
+                row[kPackedTarget + c] = lossTarget(settings.loss, invScale, d.targets[i][c]);
+                row[kPackedWeight + c] = d.weights[i][c];
+            }
+        }
+        // The held-out samples as each epoch's check reads them: inputs in a row, then per sample its blend weight,
+        // reflectance, radiance and 1 / (radiance^2 + 0.01) per channel.
+        for (size_t i : d.evalSet()) {
+            heldOutInputs.insert(heldOutInputs.end(), &d.inputs[i * nIn], &d.inputs[i * nIn] + nIn);
+            const glm::vec3 ref = d.sample(i).radiance;
+            heldOutTerms.push_back(d.blend(i));
+            for (int c = 0; c < 3; ++c) heldOutTerms.push_back(d.modulation[i][c]);
+            for (int c = 0; c < 3; ++c) heldOutTerms.push_back(ref[c]);
+            for (int c = 0; c < 3; ++c) heldOutTerms.push_back(float(1.0 / (double(ref[c]) * double(ref[c]) + 0.01)));
+            heldOutWeight += double(d.blend(i));
+        }
+        allZero = !d.targets.empty() && std::all_of(d.targets.begin(), d.targets.end(), [](const glm::vec3& t) { return t == glm::vec3(0.0f); });
+    }
+};
+
 // One training of a voxel's network with an L2 penalty of weightDecay / (training samples) on every parameter but
 // the output biases, from the initialisation of `restart` (0: the first): attempts until one does not fail, each
 // epochs of mini-batch steps in a lane, the parameters with the lowest held-out error kept.
 class Training {
 public:
-    Training(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings, float weightDecay, int restart)
-        : s_(settings), decay_(weightDecay), restart_(restart), voxel_(voxel), entries_(entries), d_(prepareSamples(voxel, entries, settings, 0)),
-          mlp_(settings.shape) {
+    Training(uint32_t voxel, const std::vector<VoxelSample>& entries, std::shared_ptr<const VoxelData> data, const TrainSettings& settings,
+             float weightDecay, int restart)
+        : s_(settings), decay_(weightDecay), restart_(restart), voxel_(voxel), entries_(entries), data_(std::move(data)), mlp_(settings.shape) {
         result_.voxel = voxel;
         result_.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
-        result_.trainCount = d_.train.size();
-        result_.heldOutCount = d_.heldOut.size();
+        result_.trainCount = data_->train.size();
+        result_.heldOutCount = data_->heldOutCount;
         result_.weightDecay = weightDecay;
-        // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
-        double meanLum = 0.0;
-        for (size_t i : d_.train) {
-            meanLum += double(d_.blend(i)) * std::max(0.0f, luminancef(d_.targets[i]));
-            weightSum_ += double(d_.blend(i));
-        }
-        meanLum = weightSum_ > 0.0 ? meanLum / weightSum_ : 0.0;
-        result_.scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
-        invScale_ = 1.0f / result_.scale;
-        // Each sample packed for the lanes: inputs, loss targets, loss weights.
-        const size_t nIn = size_t(settings.shape.inputs);
-        packed_.assign(d_.targets.size() * kPackedFloats, 0.0f);
-        for (size_t i = 0; i < d_.targets.size(); ++i) {
-            float* row = &packed_[i * kPackedFloats];
-            std::copy_n(&d_.inputs[i * nIn], nIn, row);
-            for (int c = 0; c < 3; ++c) {
-                row[kPackedTarget + c] = lossTarget(settings.loss, invScale_, d_.targets[i][c]);
-                row[kPackedWeight + c] = d_.weights[i][c];
-            }
-        }
-        // The held-out samples as each epoch's check reads them: inputs in a row, then per sample its blend weight,
-        // reflectance, radiance and 1 / (radiance^2 + 0.01) per channel.
-        for (size_t i : d_.evalSet()) {
-            heldOutInputs_.insert(heldOutInputs_.end(), &d_.inputs[i * nIn], &d_.inputs[i * nIn] + nIn);
-            const glm::vec3 ref = d_.sample(i).radiance;
-            heldOutTerms_.push_back(d_.blend(i));
-            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(d_.modulation[i][c]);
-            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(ref[c]);
-            for (int c = 0; c < 3; ++c) heldOutTerms_.push_back(float(1.0 / (double(ref[c]) * double(ref[c]) + 0.01)));
-            heldOutWeight_ += double(d_.blend(i));
-        }
+        result_.scale = data_->scale;
         batch_ = size_t(std::clamp(settings.batchSize, 1, MlpBatchWorkspace::kMaxBatch));
         // Nothing to learn where every target is zero (no light reaches the voxel's surfaces): the zero network, exact,
         // instead of a trained one's noise around zero.
-        if (!d_.targets.empty() && std::all_of(d_.targets.begin(), d_.targets.end(), [](const glm::vec3& t) { return t == glm::vec3(0.0f); })) {
+        if (data_->allZero) {
             kept_.assign(mlp_.parameters().size(), 0.0f);
             finish();
             return;
@@ -117,7 +138,7 @@ public:
     // This job's next mini-batch, as its lane's input.
     void fill(LockstepLane& lane) {
         lane.count = int(std::min(batch_, perm_.size() - at_));
-        for (int k = 0; k < lane.count; ++k) lane.rows[k] = &packed_[perm_[at_ + size_t(k)] * kPackedFloats];
+        for (int k = 0; k < lane.count; ++k) lane.rows[k] = &data_->packed[perm_[at_ + size_t(k)] * kPackedFloats];
         lane.learningRate = rate_;
         lane.weightDecay = decay_ / float(std::max<size_t>(1, result_.trainCount));
         beta1Power_ *= kAdamBeta1;
@@ -179,13 +200,13 @@ private:
     // a sixth of the training), summed in double.
     double epochError() {
         constexpr size_t B = MlpBatchWorkspace::kMaxBatch, kTerms = 10;
-        const size_t count = heldOutTerms_.size() / kTerms, nIn = size_t(s_.shape.inputs), L = mlp_.layers();
+        const size_t count = data_->heldOutTerms.size() / kTerms, nIn = size_t(s_.shape.inputs), L = mlp_.layers();
         double e = 0.0;
         for (size_t b = 0; b < count; b += B) {
             const int n = int(std::min(B, count - b));
-            mlp_.forwardBatch(&heldOutInputs_[b * nIn], n, bws_);
+            mlp_.forwardBatch(&data_->heldOutInputs[b * nIn], n, bws_);
             for (int k = 0; k < n; ++k) {
-                const float* t = &heldOutTerms_[(b + size_t(k)) * kTerms];
+                const float* t = &data_->heldOutTerms[(b + size_t(k)) * kTerms];
                 float sum = 0.0f;
                 for (int c = 0; c < 3; ++c) {
                     const float diff = t[1 + c] * eval::decodeOutput(result_.transform, result_.scale, bws_.value(L, c)[k]) - t[4 + c];
@@ -194,7 +215,7 @@ private:
                 e += double(t[0]) * double(sum);
             }
         }
-        return heldOutWeight_ > 0.0 ? e / (3.0 * heldOutWeight_) : 0.0;
+        return data_->heldOutWeight > 0.0 ? e / (3.0 * data_->heldOutWeight) : 0.0;
     }
 
     void startAttempt() {
@@ -203,7 +224,7 @@ private:
         mlp_.initialize(initSeed, s_.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
         order_ = SplitMix64(initSeed ^ 0x5851f42d4c957f2dull);
         dropPrepared();
-        perm_ = train_;
+        perm_ = data_->train;
         best_ = std::numeric_limits<double>::infinity();
         bestParams_ = mlp_.parameters();
         curve_.clear();
@@ -215,15 +236,11 @@ private:
         if (s_.epochs <= 0) return endAttempt(Clock::now());
         beginEpoch();
     }
-    // The prepared samples are not read while the lanes train (they step on packed_ and judge on heldOut*): they
-    // go for that time, half of a training's memory (the largest voxels of a 1 MB zdm2 bake hold 30,000-67,000
-    // samples each, and a group of sixteen lanes trains the sixteen largest at once), and are prepared again, the
-    // same, when an attempt ends.
-    void dropPrepared() {
-        if (!d_.entries) return;
-        train_ = std::move(d_.train);
-        d_ = PreparedSamples{};
-    }
+    // The prepared samples are not read while the lanes train (they step on the shared packed samples and judge on
+    // the shared held-out ones): they are prepared only when an attempt ends (the largest voxels of a 1 MB zdm2 bake
+    // hold 30,000-67,000 samples each, 150 bytes a sample prepared, and a group of sixteen lanes trains the
+    // sixteen largest at once).
+    void dropPrepared() { d_ = PreparedSamples{}; }
     void prepareAgain() {
         if (!d_.entries) d_ = prepareSamples(voxel_, entries_, s_, 0);
     }
@@ -235,7 +252,7 @@ private:
     void endAttempt(Clock::time_point t0) {
         prepareAgain();
         mlp_.parameters() = bestParams_;
-        const std::string failure = attemptFailure(mlp_, d_, d_.train, s_, invScale_, diverged_ && !std::isfinite(best_));
+        const std::string failure = attemptFailure(mlp_, d_, d_.train, s_, data_->invScale, diverged_ && !std::isfinite(best_));
         seconds_ += secondsSince(t0);
         if (failure.empty()) {
             result_.curve = std::move(curve_);
@@ -258,10 +275,10 @@ private:
             std::fill(mlp_.parameters().begin(), mlp_.parameters().end(), 0.0f);
             glm::dvec3 mean(0.0);
             for (size_t i : d_.train) mean += double(d_.blend(i)) * glm::dvec3(d_.targets[i]);
-            if (weightSum_ > 0.0) mean /= weightSum_;
+            if (data_->weightSum > 0.0) mean /= data_->weightSum;
             const int nOut = s_.shape.outputs;
             const size_t outBias = mlp_.parameters().size() - size_t(nOut);
-            for (int c = 0; c < nOut; ++c) mlp_.parameters()[outBias + size_t(c)] = lossTarget(s_.loss, invScale_, float(mean[c]));
+            for (int c = 0; c < nOut; ++c) mlp_.parameters()[outBias + size_t(c)] = lossTarget(s_.loss, data_->invScale, float(mean[c]));
             kept_ = mlp_.parameters();
         }
         mlp_.parameters() = kept_;
@@ -274,8 +291,8 @@ private:
         // Only the result is read from here on, while the voxel's other candidates train: the samples' copies go
         // (150 bytes a sample; the largest voxels of a 1 MB zdm2 bake hold 30,000-67,000 samples each).
         d_ = PreparedSamples{};
-        std::vector<size_t>().swap(train_);
-        for (std::vector<float>* v : {&packed_, &heldOutInputs_, &heldOutTerms_, &average_}) std::vector<float>().swap(*v);
+        data_.reset();
+        std::vector<float>().swap(average_);
         std::vector<size_t>().swap(perm_);
     }
 
@@ -284,18 +301,18 @@ private:
     int restart_;
     uint32_t voxel_;
     const std::vector<VoxelSample>& entries_;
-    PreparedSamples d_;  // while the lanes train, empty (dropPrepared)
-    std::vector<size_t> train_;  // d_.train, kept while d_ is dropped
+    std::shared_ptr<const VoxelData> data_;  // until the training ends
+    PreparedSamples d_;  // only while an attempt ends (dropPrepared)
     Mlp mlp_;
     MlpBatchWorkspace bws_;
     VoxelTrainResult result_;
-    std::vector<float> packed_, heldOutInputs_, heldOutTerms_, bestParams_, kept_, average_;
+    std::vector<float> bestParams_, kept_, average_;
     std::vector<size_t> perm_;
     std::vector<TrainCurvePoint> curve_;
     LaneState laneState_;
     SplitMix64 order_{0};
-    double weightSum_ = 0.0, heldOutWeight_ = 0.0, best_ = 0.0, beta1Power_ = 1.0, beta2Power_ = 1.0, seconds_ = 0.0;
-    float invScale_ = 1.0f, rate_ = 0.0f;
+    double best_ = 0.0, beta1Power_ = 1.0, beta2Power_ = 1.0, seconds_ = 0.0;
+    float rate_ = 0.0f;
     size_t batch_ = 1, at_ = 0;
     int epoch_ = 0, sinceBest_ = 0, raceAt_ = 0;
     bool diverged_ = false, fresh_ = false, done_ = false, parked_ = false, resumed_ = false;
@@ -387,6 +404,7 @@ private:
         double losersSeconds = 0.0;
         size_t awaiting = 0;  // race winners still training
         std::vector<std::pair<size_t, VoxelTrainResult>> winners;  // race winners ended, with their slots
+        std::weak_ptr<const VoxelData> data;  // the candidates' shared samples while one of them holds them
     };
 
     // The next training for a lane: a race's winner to resume, else the next job.
@@ -404,7 +422,14 @@ private:
         const Job& job = jobs_[k];
         h.voxel = job.voxel;
         h.slot = job.slot;
-        h.training = std::make_unique<Training>(voxels_[job.voxel], *samples_[job.voxel], settings_, job.decay, job.restart);
+        std::shared_ptr<const VoxelData> data;
+        {
+            Candidates& c = candidates_[job.voxel];
+            std::lock_guard<std::mutex> lock(c.mutex);
+            data = c.data.lock();
+            if (!data) c.data = data = std::make_shared<const VoxelData>(voxels_[job.voxel], *samples_[job.voxel], settings_);
+        }
+        h.training = std::make_unique<Training>(voxels_[job.voxel], *samples_[job.voxel], std::move(data), settings_, job.decay, job.restart);
         if (racing_) h.training->raceAt(settings_.raceEpochs);
         return true;
     }

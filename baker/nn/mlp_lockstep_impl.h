@@ -31,15 +31,21 @@ inline size_t stride(const NetworkShape& s, size_t l) { return l == 0 ? size_t(k
 
 // The gradient of an OB x IB block of a layer's weights, W[o0 + a][i0 + b]: each a sum over the samples in
 // order, fused, from zero (the blocks' shape only decides which sums run together: any shape gives the same bits).
-template <class V, int OB, int IB>
-inline void gradBlock(const float* D, size_t dStride, const float* A, size_t aStride, int n, int o0, int i0, int in, float* gW) {
+// With Bias, the block also sums the rows' bias gradients, D[o0 + a] over the samples in order from zero (fma(d, 1,
+// s) rounds as s + d does), into gB.
+template <class V, int OB, int IB, bool Bias = false>
+inline void gradBlock(const float* D, size_t dStride, const float* A, size_t aStride, int n, int o0, int i0, int in, float* gW, float* gB) {
     constexpr size_t W = size_t(V::W);
-    V acc[OB][IB];
-    for (int a = 0; a < OB; ++a)
+    V acc[OB][IB], bias[OB];
+    for (int a = 0; a < OB; ++a) {
+        bias[a] = V::splat(0.0f);
         for (int b = 0; b < IB; ++b) acc[a][b] = V::splat(0.0f);
+    }
     for (int k = 0; k < n; ++k) {
         V d[OB];
         for (int a = 0; a < OB; ++a) d[a] = V::load(D + (size_t(k) * dStride + size_t(o0 + a)) * W);
+        if constexpr (Bias)
+            for (int a = 0; a < OB; ++a) bias[a] = bias[a] + d[a];
         for (int b = 0; b < IB; ++b) {
             const V x = V::load(A + (size_t(k) * aStride + size_t(i0 + b)) * W);
             for (int a = 0; a < OB; ++a) acc[a][b] = fma(d[a], x, acc[a][b]);
@@ -47,18 +53,24 @@ inline void gradBlock(const float* D, size_t dStride, const float* A, size_t aSt
     }
     for (int a = 0; a < OB; ++a)
         for (int b = 0; b < IB; ++b) V::store(gW + (size_t(o0 + a) * size_t(in) + size_t(i0 + b)) * W, acc[a][b]);
+    if constexpr (Bias)
+        for (int a = 0; a < OB; ++a) V::store(gB + size_t(o0 + a) * W, bias[a]);
 }
 
-template <class V, int OB>
-inline void gradRows(const float* D, size_t dStride, const float* A, size_t aStride, int n, int o0, int in, float* gW) {
+// Rows o0 .. o0 + OB - 1 of a layer's weight gradient (in inputs, IN where known when compiling, else 0) and their
+// bias gradients (gB), the biases summed with the last block (the one with the fewest accumulators).
+template <class V, int OB, int IN = 0>
+inline void gradRows(const float* D, size_t dStride, const float* A, size_t aStride, int n, int o0, int inAtRunTime, float* gW, float* gB) {
+    const int in = IN ? IN : inAtRunTime;
     int i0 = 0;
     if constexpr (V::kGradInputs == 8)  // 24 accumulators
-        for (; i0 + 8 <= in; i0 += 8) gradBlock<V, OB, 8>(D, dStride, A, aStride, n, o0, i0, in, gW);
-    for (; i0 + 4 <= in; i0 += 4) gradBlock<V, OB, 4>(D, dStride, A, aStride, n, o0, i0, in, gW);
+        for (; i0 + 8 < in; i0 += 8) gradBlock<V, OB, 8>(D, dStride, A, aStride, n, o0, i0, in, gW, gB);
+    for (; i0 + 4 < in; i0 += 4) gradBlock<V, OB, 4>(D, dStride, A, aStride, n, o0, i0, in, gW, gB);
     switch (in - i0) {
-        case 3: gradBlock<V, OB, 3>(D, dStride, A, aStride, n, o0, i0, in, gW); break;
-        case 2: gradBlock<V, OB, 2>(D, dStride, A, aStride, n, o0, i0, in, gW); break;
-        case 1: gradBlock<V, OB, 1>(D, dStride, A, aStride, n, o0, i0, in, gW); break;
+        case 4: gradBlock<V, OB, 4, true>(D, dStride, A, aStride, n, o0, i0, in, gW, gB); break;
+        case 3: gradBlock<V, OB, 3, true>(D, dStride, A, aStride, n, o0, i0, in, gW, gB); break;
+        case 2: gradBlock<V, OB, 2, true>(D, dStride, A, aStride, n, o0, i0, in, gW, gB); break;
+        case 1: gradBlock<V, OB, 1, true>(D, dStride, A, aStride, n, o0, i0, in, gW, gB); break;
         default: break;
     }
 }
@@ -114,37 +126,55 @@ inline void Step<V>::gatherSamples(const LockstepLane* lanes) {
     static const float zeros[kPackedFloats] = {};
     const float* zeroRows[W];
     for (const float*& r : zeroRows) r = zeros;
+    int full = n;  // the samples every lane has
+    for (int j = 0; j < W; ++j) full = std::min(full, lanes[j].count);
     for (int k = 0; k < n; ++k) {
         const float* rows[W];
-        for (int j = 0; j < W; ++j) rows[j] = k < lanes[j].count ? lanes[j].rows[k] : zeros;
+        if (k < full)
+            for (int j = 0; j < W; ++j) rows[j] = lanes[j].rows[k];
+        else
+            for (int j = 0; j < W; ++j) rows[j] = k < lanes[j].count ? lanes[j].rows[k] : zeros;
         V::transposeRows(rows, values + ws.at[0] + size_t(k) * kPackedFloats * W);
     }
     for (int k = n; k < nBlocks; ++k) V::transposeRows(zeroRows, values + ws.at[0] + size_t(k) * kPackedFloats * W);
 }
 
+// One layer's forward pass for kSampleBlock samples: each unit's sum from its bias up in input order; ReLU where
+// `relu`. IN and OUT are the layer's widths where known when compiling (the default 9-9-3 network's layers: the
+// loops unrolled), else 0 and the widths at run time (the same operations in the same order either way).
+template <class V, int IN, int OUT>
+inline void forwardLayer(const float* Wl, const float* a, size_t as, float* z, int inAtRunTime, int outAtRunTime, bool relu) {
+    constexpr size_t W = size_t(V::W);
+    const int in = IN ? IN : inAtRunTime, out = OUT ? OUT : outAtRunTime;
+    const size_t zs = size_t(out) * W;
+    const float* bl = Wl + size_t(out) * size_t(in) * W;
+    for (int o = 0; o < out; ++o) {
+        V acc[kSampleBlock];
+        for (int q = 0; q < kSampleBlock; ++q) acc[q] = V::load(bl + size_t(o) * W);
+        const float* w = Wl + size_t(o) * size_t(in) * W;
+        for (int i = 0; i < in; ++i) {
+            const V wi = V::load(w + size_t(i) * W);
+            for (int q = 0; q < kSampleBlock; ++q) acc[q] = fma(wi, V::load(a + size_t(q) * as + size_t(i) * W), acc[q]);
+        }
+        for (int q = 0; q < kSampleBlock; ++q) V::store(z + size_t(q) * zs + size_t(o) * W, relu ? whereAboveZero(acc[q], acc[q]) : acc[q]);
+    }
+}
+
 template <class V>
 inline void Step<V>::forwardPass() {
-    // Forward: each unit's sum from its bias up in input order; ReLU on the hidden layers. kSampleBlock samples at a
-    // time, each weight loaded once for them and their sums independent chains (samples past n are the zero rows:
-    // finite, never in a gradient).
+    // Forward, kSampleBlock samples at a time, each weight loaded once for them and their sums independent chains
+    // (samples past n are the zero rows: finite, never in a gradient).
     for (int k0 = 0; k0 < nBlocks; k0 += kSampleBlock)
         for (size_t l = 0; l < L; ++l) {
             const int in = width(s, l), out = width(s, l + 1);
-            const size_t as = stride(s, l) * W, zs = size_t(out) * W;
+            const size_t as = stride(s, l) * W;
             const float* Wl = nets.params.data() + nets.offsets[l] * W;
-            const float* bl = Wl + size_t(out) * size_t(in) * W;
             const float* a = values + ws.at[l] + size_t(k0) * as;
-            float* z = values + ws.at[l + 1] + size_t(k0) * zs;
-            for (int o = 0; o < out; ++o) {
-                V acc[kSampleBlock];
-                for (int q = 0; q < kSampleBlock; ++q) acc[q] = V::load(bl + size_t(o) * W);
-                const float* w = Wl + size_t(o) * size_t(in) * W;
-                for (int i = 0; i < in; ++i) {
-                    const V wi = V::load(w + size_t(i) * W);
-                    for (int q = 0; q < kSampleBlock; ++q) acc[q] = fma(wi, V::load(a + size_t(q) * as + size_t(i) * W), acc[q]);
-                }
-                for (int q = 0; q < kSampleBlock; ++q) V::store(z + size_t(q) * zs + size_t(o) * W, l + 1 == L ? acc[q] : whereAboveZero(acc[q], acc[q]));
-            }
+            float* z = values + ws.at[l + 1] + size_t(k0) * size_t(out) * W;
+            const bool relu = l + 1 < L;
+            if (in == 9 && out == 9) forwardLayer<V, 9, 9>(Wl, a, as, z, in, out, relu);
+            else if (in == 9 && out == 3) forwardLayer<V, 9, 3>(Wl, a, as, z, in, out, relu);
+            else forwardLayer<V, 0, 0>(Wl, a, as, z, in, out, relu);
         }
 }
 
@@ -172,28 +202,37 @@ inline void Step<V>::lossGradient(LossKind loss) {
     }
 }
 
+// One hidden layer's deltas for kSampleBlock samples: each unit's sum over the next layer's units in order, from
+// zero, where the unit is active. IN, OUT: as forwardLayer's.
+template <class V, int IN, int OUT>
+inline void backLayer(const float* Wl, const float* next, const float* a, float* back, int inAtRunTime, int outAtRunTime) {
+    constexpr size_t W = size_t(V::W);
+    const int in = IN ? IN : inAtRunTime, out = OUT ? OUT : outAtRunTime;
+    const size_t ns = size_t(out) * W, bs = size_t(in) * W;
+    for (int i = 0; i < in; ++i) {
+        V acc[kSampleBlock];
+        for (V& x : acc) x = V::splat(0.0f);
+        for (int o = 0; o < out; ++o) {
+            const V w = V::load(Wl + (size_t(o) * size_t(in) + size_t(i)) * W);
+            for (int q = 0; q < kSampleBlock; ++q) acc[q] = fma(w, V::load(next + size_t(q) * ns + size_t(o) * W), acc[q]);
+        }
+        for (int q = 0; q < kSampleBlock; ++q)
+            V::store(back + size_t(q) * bs + size_t(i) * W, whereAboveZero(V::load(a + size_t(q) * bs + size_t(i) * W), acc[q]));
+    }
+}
+
 template <class V>
 inline void Step<V>::backpropagate() {
-    // Backpropagation: each hidden unit's delta its sum over the next layer's units in order, from zero, where the
-    // unit is active; four samples at a time.
+    // Backpropagation, kSampleBlock samples at a time.
     for (int k0 = 0; k0 < nBlocks; k0 += kSampleBlock)
         for (size_t l = L - 1; l >= 1; --l) {
             const int in = width(s, l), out = width(s, l + 1);
             const float* Wl = nets.params.data() + nets.offsets[l] * W;
-            const size_t ns = size_t(out) * W, bs = size_t(in) * W;
-            const float* next = deltas + ws.at[l + 1] + size_t(k0) * ns;
-            const float* a = values + ws.at[l] + size_t(k0) * bs;
-            float* back = deltas + ws.at[l] + size_t(k0) * bs;
-            for (int i = 0; i < in; ++i) {
-                V acc[kSampleBlock];
-                for (V& x : acc) x = V::splat(0.0f);
-                for (int o = 0; o < out; ++o) {
-                    const V w = V::load(Wl + (size_t(o) * size_t(in) + size_t(i)) * W);
-                    for (int q = 0; q < kSampleBlock; ++q) acc[q] = fma(w, V::load(next + size_t(q) * ns + size_t(o) * W), acc[q]);
-                }
-                for (int q = 0; q < kSampleBlock; ++q)
-                    V::store(back + size_t(q) * bs + size_t(i) * W, whereAboveZero(V::load(a + size_t(q) * bs + size_t(i) * W), acc[q]));
-            }
+            const float* next = deltas + ws.at[l + 1] + size_t(k0) * size_t(out) * W;
+            const float* a = values + ws.at[l] + size_t(k0) * size_t(in) * W;
+            float* back = deltas + ws.at[l] + size_t(k0) * size_t(in) * W;
+            if (in == 9 && out == 3) backLayer<V, 9, 3>(Wl, next, a, back, in, out);
+            else backLayer<V, 0, 0>(Wl, next, a, back, in, out);
         }
 }
 
@@ -206,16 +245,13 @@ inline void Step<V>::sumGradient() {
         const float* D = deltas + ws.at[l + 1];
         const float* A = values + ws.at[l];
         float* gW = grad + nets.offsets[l] * W;
-        int o0 = 0;
-        for (; o0 + 3 <= out; o0 += 3) gradRows<V, 3>(D, size_t(out), A, stride(s, l), n, o0, in, gW);
-        if (out - o0 == 2) gradRows<V, 2>(D, size_t(out), A, stride(s, l), n, o0, in, gW);
-        if (out - o0 == 1) gradRows<V, 1>(D, size_t(out), A, stride(s, l), n, o0, in, gW);
         float* gb = gW + size_t(out) * size_t(in) * W;
-        for (int o = 0; o < out; ++o) {
-            V acc = V::splat(0.0f);
-            for (int k = 0; k < n; ++k) acc = acc + V::load(D + (size_t(k) * size_t(out) + size_t(o)) * W);
-            V::store(gb + size_t(o) * W, acc);
-        }
+        int o0 = 0;
+        if (in == 9)
+            for (; o0 + 3 <= out; o0 += 3) gradRows<V, 3, 9>(D, size_t(out), A, stride(s, l), n, o0, in, gW, gb);
+        for (; o0 + 3 <= out; o0 += 3) gradRows<V, 3>(D, size_t(out), A, stride(s, l), n, o0, in, gW, gb);
+        if (out - o0 == 2) gradRows<V, 2>(D, size_t(out), A, stride(s, l), n, o0, in, gW, gb);
+        if (out - o0 == 1) gradRows<V, 1>(D, size_t(out), A, stride(s, l), n, o0, in, gW, gb);
     }
 }
 
