@@ -21,6 +21,7 @@
 #include "baker/bake/trainer.h"
 #include "baker/bake/training_parts.h"
 #include "baker/nn/mlp_lockstep.h"
+#include "baker/nn/random.h"
 #include "baker/nn/schedule.h"
 #include "baker/util/maths.h"
 
@@ -40,6 +41,7 @@ double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(
 // voxels hold 30,000-67,000 samples: 64 bytes a sample packed).
 struct VoxelData {
     std::vector<size_t> train;  // the training samples' indices (PreparedSamples::train)
+    std::vector<Uint128> shuffleMultipliers;  // remainderMultiplier(i) at i, for the epochs' shuffles of train
     std::vector<float> packed, heldOutInputs, heldOutTerms;
     size_t heldOutCount = 0;
     double weightSum = 0.0, heldOutWeight = 0.0;
@@ -50,6 +52,8 @@ struct VoxelData {
         const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
         train = d.train;
         heldOutCount = d.heldOut.size();
+        shuffleMultipliers.resize(train.size() + 1);
+        for (size_t i = 2; i <= train.size(); ++i) shuffleMultipliers[i] = remainderMultiplier(i);
         // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
         double meanLum = 0.0;
         for (size_t i : d.train) {
@@ -245,7 +249,9 @@ private:
         if (!d_.entries) d_ = prepareSamples(voxel_, entries_, s_, 0);
     }
     void beginEpoch() {
-        for (size_t i = perm_.size(); i > 1; --i) std::swap(perm_[i - 1], perm_[size_t(order_.below(i))]);
+        // order_.below(i) for each i, as the plain trainer draws it, by the voxel's multipliers.
+        const Uint128* multiplier = data_->shuffleMultipliers.data();
+        for (size_t i = perm_.size(); i > 1; --i) std::swap(perm_[i - 1], perm_[size_t(remainderBy(order_.next(), multiplier[i], i))]);
         rate_ = exponentialDecay(s_.learningRate, 0.1f, float(epoch_) / float(std::max(1, s_.epochs)));
         at_ = 0;
     }

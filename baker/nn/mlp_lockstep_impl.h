@@ -126,9 +126,14 @@ inline void Step<V>::gatherSamples(const LockstepLane* lanes) {
     static const float zeros[kPackedFloats] = {};
     const float* zeroRows[W];
     for (const float*& r : zeroRows) r = zeros;
+    int full = n;  // the samples every lane has
+    for (int j = 0; j < W; ++j) full = std::min(full, lanes[j].count);
     for (int k = 0; k < n; ++k) {
         const float* rows[W];
-        for (int j = 0; j < W; ++j) rows[j] = k < lanes[j].count ? lanes[j].rows[k] : zeros;
+        if (k < full)
+            for (int j = 0; j < W; ++j) rows[j] = lanes[j].rows[k];
+        else
+            for (int j = 0; j < W; ++j) rows[j] = k < lanes[j].count ? lanes[j].rows[k] : zeros;
         V::transposeRows(rows, values + ws.at[0] + size_t(k) * kPackedFloats * W);
     }
     for (int k = n; k < nBlocks; ++k) V::transposeRows(zeroRows, values + ws.at[0] + size_t(k) * kPackedFloats * W);

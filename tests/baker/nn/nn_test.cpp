@@ -5,6 +5,8 @@
 #include "baker/nn/mlp.h"
 
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
@@ -12,6 +14,7 @@
 #include "baker/nn/adam.h"
 #include "baker/nn/loss.h"
 #include "baker/nn/padded_mlp.h"
+#include "baker/nn/random.h"
 #include "baker/nn/schedule.h"
 
 #include "baker/bake/trainer.h"
@@ -205,6 +208,28 @@ TEST(Schedule, EndPoints) {
     EXPECT_FLOAT_EQ(linearDecay(2.0f, 0.25f), 1.5f);
     EXPECT_EQ(linearDecay(2.0f, 1.0f), 0.0f);
     EXPECT_EQ(linearDecay(2.0f, 3.0f), 0.0f);
+}
+
+// The training's shuffles draw x % n by a multiply (remainderBy): the division's remainder for every x and n, at
+// the edges of both (n near powers of two, x near multiples of n and at 2^64 - 1) and at random.
+TEST(Random, RemainderByMultiplyIsTheDivisionsRemainder) {
+    std::vector<uint64_t> divisors = {1, 2, 3, 5, 7, 10, 1000, 5925, 65535, 65536, 65537, (1ull << 32) - 1, 1ull << 32, (1ull << 32) + 1,
+                                      (1ull << 63) - 1, 1ull << 63, ~0ull - 1, ~0ull};
+    SplitMix64 rng(3);
+    for (int k = 0; k < 2000; ++k) divisors.push_back(1 + rng.below(1u << 20));
+    for (int k = 0; k < 200; ++k) divisors.push_back(rng.next() >> (rng.next() % 64));
+    uint64_t checked = 0;
+    for (uint64_t n : divisors) {
+        if (n == 0) continue;
+        const Uint128 m = remainderMultiplier(n);
+        std::vector<uint64_t> xs = {0, 1, n - 1, n, n + 1, 2 * n - 1, 2 * n, ~0ull, ~0ull - 1, ~0ull - n, (~0ull / n) * n, (~0ull / n) * n - 1};
+        for (int k = 0; k < 500; ++k) xs.push_back(rng.next());
+        for (uint64_t x : xs) {
+            ASSERT_EQ(remainderBy(x, m, n), x % n) << "x " << x << " n " << n;
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 1000000u);
 }
 
 TEST(Mlp, InitialisationIsDeterministic) {
