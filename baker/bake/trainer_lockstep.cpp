@@ -36,9 +36,9 @@ using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // What a voxel's candidates share, prepared once for all of them (and freed when the last of them ends): the
-// samples packed for the lanes, the held-out samples as each epoch's check reads them, the voxel's scale. Six
-// candidates a voxel train at once in neighbouring lanes, and each had its own copy (a 1 MB zdm2 bake's largest
-// voxels hold 30,000-67,000 samples: 64 bytes a sample packed).
+// samples packed for the lanes (64 bytes a sample), the shuffles' multipliers (16), the held-out samples as each
+// epoch's check reads them, the voxel's scale. Six candidates a voxel train at once in neighbouring lanes (a 1 MB
+// zdm2 bake's largest voxels hold 30,000-67,000 samples).
 struct VoxelData {
     std::vector<size_t> train;  // the training samples' indices (PreparedSamples::train)
     std::vector<Uint128> shuffleMultipliers;  // remainderMultiplier(i) at i, for the epochs' shuffles of train

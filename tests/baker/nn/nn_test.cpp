@@ -1,7 +1,7 @@
 // baker/nn and the trainer built on it: backpropagation against finite differences, the light selector's
 // padded network against the plain one on the same weights, the losses' gradients against finite
-// differences, Adam and the schedules, deterministic initialisation, and the trainer reproducing a known
-// function of (position, normal, direction) to a stated error.
+// differences, Adam and the schedules, the shuffles' remainder by a multiply against the division's, deterministic
+// initialisation, and the trainer reproducing a known function of (position, normal, direction) to a stated error.
 #include "baker/nn/mlp.h"
 
 #include <cmath>
