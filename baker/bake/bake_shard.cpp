@@ -15,7 +15,7 @@ namespace nrad {
 namespace {
 
 constexpr char kMagic[8] = {'N', 'R', 'A', 'D', 'P', 'A', 'R', 'T'};
-constexpr uint32_t kPartVersion = 1;
+constexpr uint32_t kPartVersion = 2;  // 2: the traced samples' counts carry the noisy points' extra paths
 
 template <class T>
 T load(const uint8_t* p) {

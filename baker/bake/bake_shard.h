@@ -10,7 +10,7 @@
 //
 // A part file (native little-endian; every shard runs the same build):
 //   0  char[8]  "NRADPART"
-//   8  u32      version (1)
+//   8  u32      version (2; a part of another version is refused)
 //   12 u32      kind (ShardPartKind)
 //   16 u32      shard index K, 20 u32 shard count N
 //   24 u64      scene hash (sceneHash), 32 u64 settings hash (the caller's: every setting that changes the bytes)

@@ -175,7 +175,7 @@ struct RangeBatch {
     std::vector<glm::vec3> estimates;
     std::vector<uint32_t> extraOf;
     RayCounters counters;
-    uint64_t nonFinite = 0, noisy = 0;
+    uint64_t nonFinite = 0, noisy = 0, extraPaths = 0;
 };
 
 // The range's points, but those a viewer does not see and those in an alpha cutout's hole (no surface:
@@ -200,9 +200,23 @@ void startRange(const PointStarts& ps, const std::vector<PointRequest>& requests
     }
 }
 
+}  // namespace
+
+uint32_t noisyExtraPaths(double mean, double variance, uint32_t n, const SampleSettings& settings) {
+    if (settings.extraPathsFactor <= 1 || n < 2 || !(mean > 0.0)) return 0;
+    // The mean of m paths has the relative variance r^2 n / m: m = n (r / b)^2 brings it to the bound b. Counted on
+    // from the point's `paths`.
+    const double relativeVariance = variance / (double(n) * mean * mean), bound = double(settings.noisyRelativeError);
+    if (!(relativeVariance > bound * bound)) return 0;
+    const double wanted = std::ceil(double(settings.paths) * (relativeVariance / (bound * bound) - 1.0));
+    return uint32_t(std::min(double((settings.extraPathsFactor - 1) * settings.paths), wanted));
+}
+
+namespace {
+
 // All the range's paths traced together (PathTracer::estimate, in batches). Noisy targets: points whose
-// mean's relative standard error is above the bound get more paths, traced together as well (paths
-// numbered on from settings.paths).
+// mean's relative standard error is above the bound get the paths that bring it there (noisyExtraPaths),
+// traced together as well (paths numbered on from settings.paths).
 void traceRange(const PointStarts& ps, const std::vector<PointRequest>& requests, const TargetEstimator& estimator, RangeBatch& batch) {
     const SampleSettings& settings = ps.settings;
     const std::vector<size_t>& points = batch.points;
@@ -217,7 +231,6 @@ void traceRange(const PointStarts& ps, const std::vector<PointRequest>& requests
     const bool adaptive = !estimator.tail && settings.extraPathsFactor > 1 && settings.paths > 1;
     if (!adaptive) return;
     std::vector<PathStart> more;
-    const uint32_t extra = (settings.extraPathsFactor - 1) * settings.paths;
     for (size_t k = 0; k < points.size(); ++k) {
         double s1 = 0.0, s2 = 0.0;
         uint32_t n = 0;
@@ -231,8 +244,10 @@ void traceRange(const PointStarts& ps, const std::vector<PointRequest>& requests
         }
         if (n < 2 || !(s1 > 0.0)) continue;
         const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
-        if (std::sqrt(var / n) <= double(settings.noisyRelativeError) * mean) continue;
+        const uint32_t extra = noisyExtraPaths(mean, var, n, settings);
+        if (extra == 0) continue;
         batch.extraOf[k] = extra;
+        batch.extraPaths += extra;
         for (uint32_t j = 0; j < extra; ++j) more.push_back({&batch.starts[k], requests[points[k]].pathStream, settings.paths + j});
     }
     if (!more.empty()) {
@@ -306,16 +321,18 @@ void gatherShares(const BakeGroup& group, const BlockShares& shares, std::vector
         w.put(stats.rays);
         w.put(stats.nonFinitePaths);
         w.put(stats.noisyPoints);
+        w.put(stats.extraPaths);
         const std::vector<std::vector<uint8_t>> all = group.allGather(w.bytes);
         if (!all.empty()) {  // (empty: a shard recording its share, bake_shard.h, keeps its own counts)
             stats.rays = RayCounters{};
-            stats.nonFinitePaths = stats.noisyPoints = 0;
+            stats.nonFinitePaths = stats.noisyPoints = stats.extraPaths = 0;
         }
         for (const std::vector<uint8_t>& bytes : all) {
             ByteReader in(bytes);
             stats.rays += in.get<RayCounters>();
             stats.nonFinitePaths += in.get<uint64_t>();
             stats.noisyPoints += in.get<uint64_t>();
+            stats.extraPaths += in.get<uint64_t>();
         }
     }
     constexpr size_t kRound = 64;
@@ -400,6 +417,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
                 total.counters += batch.counters;
                 total.nonFinite += batch.nonFinite;
                 total.noisy += batch.noisy;
+                total.extraPaths += batch.extraPaths;
                 const size_t d = done += part.size();
                 if (progress) progress(double(d) / double(std::max<size_t>(1, myPoints)));
             }
@@ -408,6 +426,7 @@ std::vector<TrainingSample> generateTrainingSamples(const Scene& scene, const Pa
         stats.rays += total.counters;
         stats.nonFinitePaths += total.nonFinite;
         stats.noisyPoints += total.noisy;
+        stats.extraPaths += total.extraPaths;
     });
 
     if (group && group->exchanges()) gatherShares(*group, shares, out, valid, stats, grid.voxelCount());

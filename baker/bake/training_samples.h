@@ -55,13 +55,20 @@ struct SampleSettings {
     // sequence at index `firstPoint`, and its floor points and paths are salted with `generation` (0: none).
     uint32_t firstPoint = 0;
     uint32_t generation = 0;
-    // Noisy targets get more paths (Monte Carlo targets only): a point whose mean's relative standard error
-    // (luminance, over its `paths` estimates) exceeds noisyRelativeError gets (extraPathsFactor - 1) x paths
-    // more, decided per point from its own estimates (any threads, the same samples). 1: off. The default, 4,
-    // lowers the glossy box's and the interiors' errors (docs/usage.md, "--noisy-paths").
+    // Noisy targets get more paths (Monte Carlo targets only): a point whose mean's relative standard error r
+    // (luminance, over its `paths` estimates) exceeds b = noisyRelativeError gets the paths that bring it to b,
+    // paths x ((r / b)^2 - 1) more, at most (extraPathsFactor - 1) x paths, decided per point from its own
+    // estimates (any threads, the same samples). 1: off. The default, 4, lowers the glossy box's and the
+    // interiors' errors (docs/usage.md, "--noisy-paths").
     uint32_t extraPathsFactor = 4;
     float noisyRelativeError = 0.15f;
 };
+
+// The extra paths of a point whose n finite path estimates (luminance) have the mean `mean` and the sample variance
+// `variance`: those that bring the relative standard error of its mean to settings.noisyRelativeError, paths x
+// ((r / b)^2 - 1) rounded up, at most (extraPathsFactor - 1) x paths; 0 within the bound, with a factor of 1 or a
+// mean of 0.
+uint32_t noisyExtraPaths(double mean, double variance, uint32_t n, const SampleSettings& settings);
 
 // How a sample's target is estimated: `paths` full paths (Monte Carlo), or, with a tail, `paths` estimates of
 // `bounces` bounces each with the tail standing in for the rest (PathTracer::scatteredRadiance).
@@ -77,6 +84,7 @@ struct SampleStats {
     uint64_t droppedSamples = 0;  // points whose every path estimate was non-finite
     uint64_t hiddenSamples = 0;  // points no viewer sees from their direction (dropped, SampleSettings::dropHidden)
     uint64_t noisyPoints = 0;  // points that got extra paths (SampleSettings::extraPathsFactor)
+    uint64_t extraPaths = 0;  // the paths they got beyond SampleSettings::paths
     RayCounters rays;
     std::vector<uint32_t> perVoxel;  // samples per voxel after the floor
     uint64_t neeWarmupPaths = 0, neeTrainingSteps = 0;

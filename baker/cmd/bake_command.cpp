@@ -90,6 +90,7 @@ struct BakeOptions {
     int maxDepth = defaults().samples.maxDepth, epochs = defaults().train.epochs, batch = defaults().train.batchSize;
     int patience = defaults().train.patience, raceEpochs = defaults().train.raceEpochs, restarts = defaults().train.restarts;
     float learningRate = defaults().train.learningRate, blendBand = defaults().blendBand;
+    float noisyError = defaults().samples.noisyRelativeError;
     float epochAverage = defaults().train.epochAverage;
     std::string weightDecay = joinFloats(defaults().train.weightDecays);
     std::string budget;  // bytes, with an optional K / M suffix (x1024); empty: the uniform grid
@@ -189,8 +190,12 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
         .describeDefault("0: automatic: " + std::to_string(kMonteCarloPaths) + "; " + std::to_string(kIntegralStartPaths) +
                          " for the Monte Carlo start of --training integral");
     t.add("--noisy-paths", &o.noisyPaths,
-          "Points whose target's relative standard error over their paths exceeds 0.15 get this many times the paths; 1: off, "
-          "which takes the glossy box from relMSE 0.0037 to 0.0085 and makes bakes 1.3-1.6x faster");
+          "Points whose target's relative standard error over their paths exceeds 0.15 get the paths that bring it to 0.15, "
+          "up to this many times the paths; 1: off, which takes the glossy box from relMSE 0.0037 to 0.0085");
+    t.add("--noisy-error", &o.noisyError,
+          "The bound of --noisy-paths: a point whose target's relative standard error exceeds it gets the paths that bring "
+          "it there")
+        .checkedBy([](CLI::Option* p) { p->check(finiteRange(0.01, 1.0)); });
     t.add("--nee", &o.nee,
           "Light selection of the training paths: power, uniform, or learned (a selection network trained on warm-up paths "
           "from the training points first)")
@@ -349,6 +354,7 @@ int settingsFromOptions(BakeOptions& o, BakeSettings& s) {
     s.samples.points = o.points;
     s.samples.paths = o.paths;
     s.samples.extraPathsFactor = o.noisyPaths;
+    s.samples.noisyRelativeError = o.noisyError;
     s.samples.maxDepth = o.maxDepth;
     s.samples.seed = o.seed;
     s.samples.minSamplesPerVoxel = o.minSamples;
@@ -477,13 +483,13 @@ void printBakeLine(const BakeOptions& o, const BakeSettings& s, const BakeResult
     for (const VoxelTrainResult& v : r.voxels)
         for (const std::string& e : v.events) std::fprintf(stderr, "voxel %u: %s\n", v.voxel, e.c_str());
     std::printf("baked %s -> %s: %zu bytes, %zu of %u %s occupied, %zu samples (%llu floor, %llu hidden, %llu dropped, %llu "
-                "non-finite paths, %llu noisy with %ux the paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
+                "non-finite paths, %llu noisy with %llu extra paths, up to %ux the paths), held-out relMSE mean %.4g worst %.4g (voxel %u), %zu retrained, %zu fallback; "
                 "time: load %.2f s, setup %.2f s, sampling %.2f s, partition %.2f s, training %.2f s, writing %.3f s\n",
                 o.scene.c_str(), o.output.c_str(), bytes, r.voxels.size(), unsigned(r.asset.cellCount()),
                 r.asset.tree.empty() ? "voxels" : "leaves", r.sampleCount,
                 (unsigned long long)r.sampleStats.floorPoints, (unsigned long long)r.sampleStats.hiddenSamples,
                 (unsigned long long)r.sampleStats.droppedSamples, (unsigned long long)r.sampleStats.nonFinitePaths,
-                (unsigned long long)r.sampleStats.noisyPoints, s.samples.extraPathsFactor, h.mean, h.worst, h.worstVoxel, h.retrained,
+                (unsigned long long)r.sampleStats.noisyPoints, (unsigned long long)r.sampleStats.extraPaths, s.samples.extraPathsFactor, h.mean, h.worst, h.worstVoxel, h.retrained,
                 h.fallbacks, times.load, r.timings.setup, r.timings.sampling, r.timings.partition, r.timings.training, times.write);
 }
 
@@ -628,6 +634,7 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
     j["hidden_samples"] = r.sampleStats.hiddenSamples;
     j["non_finite_paths"] = r.sampleStats.nonFinitePaths;
     j["noisy_samples"] = r.sampleStats.noisyPoints;
+    j["noisy_extra_paths"] = r.sampleStats.extraPaths;
     j["nee"] = {{"mode", neeModeName(s.nee.mode)},
                 {"warmup_paths", r.sampleStats.neeWarmupPaths},
                 {"training_steps", r.sampleStats.neeTrainingSteps},

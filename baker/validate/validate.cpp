@@ -699,7 +699,7 @@ ShProbeGrid fitBaseline(ValidationRun& v, const NradAssetInfo& info, const Sampl
     if (info.contentFlags & NRAD_CONTENT_DEMODULATED)
         for (TrainingSample& t : samples) t.radiance /= demodulationDivisor(t);
     r.baselineTrainingSamples = samples.size();
-    r.baselineTrainingPaths = (sst.points + sst.floorPoints + sst.noisyPoints * (ss.extraPathsFactor - 1)) * ss.paths;
+    r.baselineTrainingPaths = (sst.points + sst.floorPoints) * ss.paths + sst.extraPaths;
     v.say("baseline: fitting " + std::to_string(r.baselineProbes.x) + "x" + std::to_string(r.baselineProbes.y) + "x" +
           std::to_string(r.baselineProbes.z) + " probes to " + std::to_string(samples.size()) + " samples");
     ShProbeGrid probes =

@@ -240,7 +240,7 @@ nlohmann::json dumpedConfig(const std::string& args) {
 TEST(CliBake, EverySettingRoundTripsThroughConfig) {
     // A value other than the default for every setting: a setting added without one here fails the test.
     const nlohmann::json examples = nlohmann::json::parse(R"({
-        "grid": "2x1x1", "points": 300, "paths": 2, "noisy_paths": 1, "nee": "uniform", "max_depth": 6, "hidden": "16,16",
+        "grid": "2x1x1", "points": 300, "paths": 2, "noisy_paths": 1, "noisy_error": 0.25, "nee": "uniform", "max_depth": 6, "hidden": "16,16",
         "epochs": 10, "batch_size": 64, "patience": 50, "learning_rate": 0.02, "loss": "l2", "encoding": "fp32",
         "min_samples_per_voxel": 32, "training": "integral", "generations": 3, "generation_points": 1000,
         "generation_paths": 4, "generation_epochs": 2, "generation_lr": "0.02,0.001", "average_decay": 0.5,
@@ -288,7 +288,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
     std::ofstream(dir + "/all.json") << some.dump();
     EXPECT_EQ(dumpedConfig("--config '" + dir + "/all.json'"), some);
     // A key no setting has, and a value its flag would refuse, name the key (exit 3).
-    for (const char* bad : {R"({"colour": "red"})", R"({"nee": "best"})", R"({"epochs": "many"})", R"({"sun_angle": 45})",
+    for (const char* bad : {R"({"colour": "red"})", R"({"nee": "best"})", R"({"epochs": "many"})", R"({"sun_angle": 45})", R"({"noisy_error": 0})",
                             R"({"metadata": "no"})", R"({"points": null})"}) {
         std::ofstream(dir + "/bad.json") << bad;
         const RunResult r = run("bake " + cornell() + " -o '" + dir + "/x.nrad' --config '" + dir + "/bad.json' -q");

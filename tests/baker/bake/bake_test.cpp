@@ -139,11 +139,37 @@ TEST(Bake, NoisyTargetsGetMorePathsTheSameForAnyThreads) {
     EXPECT_EQ(format::encode(on.asset), test::bakeBytes(scene, s, 2));
     EXPECT_GT(on.sampleStats.noisyPoints, 0u);
     EXPECT_LT(on.sampleStats.noisyPoints, on.sampleCount);
+    // Each gets the paths that bring its error to the bound, at most 3 x 16 more: some fewer.
+    EXPECT_GE(on.sampleStats.extraPaths, on.sampleStats.noisyPoints);
+    EXPECT_LT(on.sampleStats.extraPaths, on.sampleStats.noisyPoints * 3 * 16);
     s.samples.extraPathsFactor = 1;
     const BakeResult off = bakeScene(scene, s);
     EXPECT_EQ(off.sampleStats.noisyPoints, 0u);
     EXPECT_GT(on.sampleStats.rays.total(), off.sampleStats.rays.total());
     EXPECT_NE(format::encode(on.asset), format::encode(off.asset));
+}
+
+// A noisy point's extra paths: those that bring its mean's relative standard error r (over its n estimates) to the
+// bound b, paths x ((r / b)^2 - 1) rounded up, at most (factor - 1) x paths.
+TEST(Bake, NoisyPointsGetThePathsThatBringTheirErrorToTheBound) {
+    SampleSettings s;
+    s.paths = 32;
+    s.extraPathsFactor = 4;
+    s.noisyRelativeError = 0.15f;
+    // The sample variance of n = 32 estimates whose mean has the relative standard error r.
+    auto extra = [&](double r, double mean) { return noisyExtraPaths(mean, r * r * 32.0 * mean * mean, 32, s); };
+    EXPECT_EQ(extra(0.1, 2.0), 0u);
+    EXPECT_EQ(extra(0.149, 2.0), 0u);
+    EXPECT_EQ(extra(0.2, 2.0), 25u);  // 32 x (0.04 / 0.0225 - 1) = 24.9
+    EXPECT_EQ(extra(0.2, 1e-6), 25u);  // relative: the same for a dim point
+    EXPECT_EQ(extra(0.25, 2.0), 57u);  // 32 x 1.78 = 56.9
+    EXPECT_EQ(extra(1.0, 2.0), 96u);  // capped at 3 x 32
+    s.extraPathsFactor = 64;
+    EXPECT_EQ(extra(1.0, 2.0), 1391u);  // 32 x (1 / 0.0225 - 1) = 1390.2, below 63 x 32
+    EXPECT_EQ(noisyExtraPaths(0.0, 1.0, 32, s), 0u);  // no light: nothing to resolve
+    EXPECT_EQ(noisyExtraPaths(2.0, 1e9, 1, s), 0u);  // one estimate: no variance to judge
+    s.extraPathsFactor = 1;
+    EXPECT_EQ(extra(1.0, 2.0), 0u);  // off
 }
 
 TEST(Bake, PaperConfigurationFitsIn8KB) {
