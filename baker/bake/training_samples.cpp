@@ -209,7 +209,7 @@ uint32_t noisyExtraPaths(double mean, double variance, uint32_t n, const SampleS
     const double relativeVariance = variance / (double(n) * mean * mean), bound = double(settings.noisyRelativeError);
     if (!(relativeVariance > bound * bound)) return 0;
     const double wanted = std::ceil(double(settings.paths) * (relativeVariance / (bound * bound) - 1.0));
-    return uint32_t(std::min(double((settings.extraPathsFactor - 1) * settings.paths), wanted));
+    return uint32_t(std::min(double(settings.extraPathsFactor - 1) * double(settings.paths), wanted));  // (no u32 product to wrap)
 }
 
 namespace {

@@ -190,8 +190,8 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
         .describeDefault("0: automatic: " + std::to_string(kMonteCarloPaths) + "; " + std::to_string(kIntegralStartPaths) +
                          " for the Monte Carlo start of --training integral");
     t.add("--noisy-paths", &o.noisyPaths,
-          "Points whose target's relative standard error over their paths exceeds 0.15 get the paths that bring it to 0.15, "
-          "up to this many times the paths; 1: off, which takes the glossy box from relMSE 0.0037 to 0.0085");
+          "Points whose target's relative standard error over their paths exceeds --noisy-error get the paths that bring it "
+          "there, up to this many times the paths; 1: off, which takes the glossy box from relMSE 0.0037 to 0.0085");
     t.add("--noisy-error", &o.noisyError,
           "The bound of --noisy-paths: a point whose target's relative standard error exceeds it gets the paths that bring "
           "it there")
