@@ -66,6 +66,7 @@ struct VoxelData {
 
     VoxelData(uint32_t voxel, const std::vector<VoxelSample>& entries, const TrainSettings& settings) {
         const PreparedSamples d = prepareSamples(voxel, entries, settings, 0);
+        if (d.targets.size() >= size_t(UINT32_MAX)) throw std::length_error("a network's training samples number 2^32 or more");
         train = d.train;
         heldOutCount = d.heldOut.size();
         shuffleMultipliers.resize(train.size() + 1);
@@ -158,12 +159,12 @@ public:
     // This job's next mini-batch, as its lane's input.
     void fill(LockstepLane& lane) {
         lane.count = int(std::min(batch_, perm_.size() - at_));
-        for (int k = 0; k < lane.count; ++k) lane.rows[k] = &data_->packed[perm_[at_ + size_t(k)] * kPackedFloats];
+        for (int k = 0; k < lane.count; ++k) lane.rows[k] = &data_->packed[size_t(perm_[at_ + size_t(k)]) * kPackedFloats];
         // The next batch's rows are fetched while this one trains: they lie scattered over the voxel's packed samples,
         // and with sixteen voxels training at once most are out of the core's caches (the step's gather of them took
         // a third of the step when they were not prefetched).
         const size_t next = at_ + size_t(lane.count), end = std::min(perm_.size(), next + batch_);
-        for (size_t k = next; k < end; ++k) __builtin_prefetch(&data_->packed[perm_[k] * kPackedFloats]);
+        for (size_t k = next; k < end; ++k) __builtin_prefetch(&data_->packed[size_t(perm_[k]) * kPackedFloats]);
         lane.learningRate = rate_;
         lane.weightDecay = decay_ / float(std::max<size_t>(1, result_.trainCount));
         beta1Power_ *= kAdamBeta1;
@@ -249,7 +250,7 @@ private:
         mlp_.initialize(initSeed, s_.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
         order_ = SplitMix64(initSeed ^ 0x5851f42d4c957f2dull);
         dropPrepared();
-        perm_ = data_->train;
+        perm_.assign(data_->train.begin(), data_->train.end());
         best_ = std::numeric_limits<double>::infinity();
         bestParams_ = mlp_.parameters();
         curve_.clear();
@@ -270,9 +271,15 @@ private:
         if (!d_.entries) d_ = prepareSamples(voxel_, entries_, s_, 0);
     }
     void beginEpoch() {
-        // order_.below(i) for each i, as the plain trainer draws it, by the voxel's multipliers.
+        // order_.below(i) for each i, as the plain trainer draws it, by the voxel's multipliers: a block's draws first
+        // (they do not depend on the order, and their multiplications overlap), then its swaps.
         const Uint128* multiplier = data_->shuffleMultipliers.data();
-        for (size_t i = perm_.size(); i > 1; --i) std::swap(perm_[i - 1], perm_[size_t(remainderBy(order_.next(), multiplier[i], i))]);
+        uint32_t draw[64];
+        for (size_t i = perm_.size(); i > 1;) {
+            const size_t block = std::min<size_t>(64, i - 1);
+            for (size_t k = 0; k < block; ++k) draw[k] = uint32_t(remainderBy(order_.next(), multiplier[i - k], i - k));
+            for (size_t k = 0; k < block; ++k, --i) std::swap(perm_[i - 1], perm_[draw[k]]);
+        }
         rate_ = exponentialDecay(s_.learningRate, 0.1f, float(epoch_) / float(std::max(1, s_.epochs)));
         at_ = 0;
     }
@@ -320,7 +327,7 @@ private:
         d_ = PreparedSamples{};
         data_.reset();
         std::vector<float>().swap(average_);
-        std::vector<size_t>().swap(perm_);
+        std::vector<uint32_t>().swap(perm_);
     }
 
     const TrainSettings& s_;
@@ -334,7 +341,7 @@ private:
     MlpBatchWorkspace bws_;
     VoxelTrainResult result_;
     std::vector<float> bestParams_, kept_, average_;
-    std::vector<size_t> perm_;
+    std::vector<uint32_t> perm_;  // the epoch's order of the training samples (fewer than 2^32: VoxelData checks)
     std::vector<TrainCurvePoint> curve_;
     LaneState laneState_;
     SplitMix64 order_{0};
