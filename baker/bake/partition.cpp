@@ -109,6 +109,7 @@ struct BuildCell {
     uint32_t depth = 0;
     uint32_t extra = 0;  // with PartitionSettings::gridRefine: tree levels under the grid's cell
     std::vector<uint32_t> samples;
+    std::vector<float> t;  // the samples' lattice coordinates (3 each), beside them: read in order, not scattered
     double residual = 0.0;
     int lower = -1, upper = -1;
     uint32_t axis = 0, split = 0;
@@ -141,6 +142,7 @@ public:
         for (int k = 0; k < 3; ++k) cells_[0].box.hi[k] = lattice.dims[k];
         cells_[0].samples.resize(n_);
         for (size_t i = 0; i < n_; ++i) cells_[0].samples[i] = uint32_t(i);
+        cells_[0].t = std::move(t_);
     }
 
     AdaptivePartition run(const LeafScorer& scorer, const std::function<void(double)>& progress) {
@@ -194,7 +196,7 @@ private:
     const size_t n_;
     const uint64_t perNetwork_;
     const uint64_t perLeafVolume_;  // the volume's networks a leaf may get (PartitionSettings::volumeNetworks)
-    std::vector<float> t_;  // per sample: its lattice coordinate (3)
+    std::vector<float> t_;  // per sample: its lattice coordinate (3), until the root cell takes them
     glm::vec3 lower_{0.0f}, upper_{0.0f};
     float featureScale_ = 0.0f;
     bool buildingGrid_ = false;  // while the grid's cells are cut (no other split meanwhile)
@@ -262,11 +264,10 @@ private:
             bins[k].resize(planes[k].size() + 1);
             binCount[k].assign(planes[k].size() + 1, 0);
         }
-        // A cell's samples lie scattered over the bake's (a 1 MB zdm2 bake's 4 M samples: 48 MB of coordinates, 256 MB
-        // of samples), so that nearly every read missed the caches: each is fetched kAhead samples ahead.
+        // The features of a cell's samples lie scattered over the bake's (a 1 MB zdm2 bake's 4 M samples: 256 MB), so
+        // that nearly every read missed the caches: each is fetched kAhead used samples ahead.
         constexpr size_t kAhead = 16;
         for (size_t j = 0; j < count; ++j) {
-            if (j + kAhead < count) __builtin_prefetch(&t_[3 * size_t(c.samples[j + kAhead])]);
             if (j % stride == 0 && j + kAhead * stride < count) {
                 const uint32_t ahead = c.samples[j + kAhead * stride];
                 __builtin_prefetch(&samples_[ahead].position);
@@ -276,7 +277,7 @@ private:
             const uint32_t i = c.samples[j];
             size_t bin[3];
             for (int k = 0; k < 3; ++k) {
-                const float tk = t_[3 * size_t(i) + size_t(k)];
+                const float tk = c.t[3 * j + size_t(k)];
                 bin[k] = size_t(std::upper_bound(planes[k].begin(), planes[k].end(), tk,
                                                  [](float v, uint32_t plane) { return v < float(plane); }) -
                                 planes[k].begin());
@@ -350,8 +351,8 @@ private:
             // nearest the middle of that gap (a wall's inside), so that the plane clears both faces; hard where
             // both are hardGap away or more.
             float below = -std::numeric_limits<float>::infinity(), above = std::numeric_limits<float>::infinity();
-            for (uint32_t i : c.samples) {
-                const float t = t_[3 * size_t(i) + c.bestAxis];
+            for (size_t j = 0; j < c.samples.size(); ++j) {
+                const float t = c.t[3 * j + c.bestAxis];
                 if (t < float(c.bestSplit)) below = std::max(below, t);
                 else above = std::min(above, t);
             }
@@ -365,9 +366,19 @@ private:
             }
             c.hard = std::min(float(c.bestSplit) - below, above - float(c.bestSplit)) >= settings_.hardGap;
         }
-        for (uint32_t i : c.samples)
-            (t_[3 * size_t(i) + c.bestAxis] < float(c.bestSplit) ? lo : hi).samples.push_back(i);
+        size_t lowerCount = 0;
+        for (size_t j = 0; j < c.samples.size(); ++j) lowerCount += c.t[3 * j + c.bestAxis] < float(c.bestSplit) ? 1 : 0;
+        lo.samples.reserve(lowerCount);
+        lo.t.reserve(3 * lowerCount);
+        hi.samples.reserve(c.samples.size() - lowerCount);
+        hi.t.reserve(3 * (c.samples.size() - lowerCount));
+        for (size_t j = 0; j < c.samples.size(); ++j) {
+            BuildCell& side = c.t[3 * j + c.bestAxis] < float(c.bestSplit) ? lo : hi;
+            side.samples.push_back(c.samples[j]);
+            side.t.insert(side.t.end(), &c.t[3 * j], &c.t[3 * j] + 3);
+        }
         std::vector<uint32_t>().swap(c.samples);
+        std::vector<float>().swap(c.t);
         c.axis = c.bestAxis;
         c.split = c.bestSplit;
         c.lower = int(cells_.size());
@@ -406,7 +417,7 @@ private:
             c.bestAxis = axis;
             c.bestSplit = c.box.lo[axis] + g * (widest / 2);
             size_t lo = 0;
-            for (uint32_t i : c.samples) lo += t_[3 * size_t(i) + axis] < float(c.bestSplit) ? 1 : 0;
+            for (size_t j = 0; j < c.samples.size(); ++j) lo += c.t[3 * j + axis] < float(c.bestSplit) ? 1 : 0;
             c.bestMakesNetwork = lo > 0 && lo < c.samples.size();
             if (!split(id, false)) throw std::logic_error("refinePartition: the grid does not fit the budget");  // (no split while building it)
             open.push_back(uint32_t(cells_.size() - 1));
