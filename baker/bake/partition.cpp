@@ -136,13 +136,12 @@ public:
         : settings_(settings), samples_(samples), learned_(learned), topology_(topology), reserve_(reserve), n_(samples.size()),
           perNetwork_(8 + topology.parameterCount() * topology.bytesPerWeight() + reserve.perNetwork),
           perLeafVolume_(settings.volumeNetworks * (8 + topology.parameterCount() * topology.bytesPerWeight())) {
-        placeSamples(lattice);
         buildingGrid_ = settings.gridRefine > 0;
         cells_.resize(1);
+        placeSamples(lattice, cells_[0].t);
         for (int k = 0; k < 3; ++k) cells_[0].box.hi[k] = lattice.dims[k];
         cells_[0].samples.resize(n_);
         for (size_t i = 0; i < n_; ++i) cells_[0].samples[i] = uint32_t(i);
-        cells_[0].t = std::move(t_);
     }
 
     AdaptivePartition run(const LeafScorer& scorer, const std::function<void(double)>& progress) {
@@ -196,7 +195,6 @@ private:
     const size_t n_;
     const uint64_t perNetwork_;
     const uint64_t perLeafVolume_;  // the volume's networks a leaf may get (PartitionSettings::volumeNetworks)
-    std::vector<float> t_;  // per sample: its lattice coordinate (3), until the root cell takes them
     glm::vec3 lower_{0.0f}, upper_{0.0f};
     float featureScale_ = 0.0f;
     bool buildingGrid_ = false;  // while the grid's cells are cut (no other split meanwhile)
@@ -212,18 +210,18 @@ private:
                                    settings_.volumeNetworks >= 2 ? leaves : 0);
     }
 
-    // Each sample's lattice coordinate, and what its features need: the lattice's lower corner and the scale that
-    // makes positions relative to it.
-    void placeSamples(const format::Grid& lattice) {
+    // Each sample's lattice coordinate (into t, 3 a sample: the root cell's), and what its features need: the
+    // lattice's lower corner and the scale that makes positions relative to it.
+    void placeSamples(const format::Grid& lattice, std::vector<float>& t) {
         const float factor[3] = {eval::gridFactor(lattice, 0), eval::gridFactor(lattice, 1), eval::gridFactor(lattice, 2)};
-        t_.resize(3 * n_);
+        t.resize(3 * n_);
         for (int k = 0; k < 3; ++k) featureScale_ = std::max(featureScale_, lattice.upper[k] - lattice.lower[k]);
         lower_ = glm::vec3(lattice.lower[0], lattice.lower[1], lattice.lower[2]);
         upper_ = glm::vec3(lattice.upper[0], lattice.upper[1], lattice.upper[2]);
         for (size_t i = 0; i < n_; ++i)
             for (int k = 0; k < 3; ++k) {
                 const float p = std::clamp(samples_[i].position[k], lower_[k], upper_[k]);
-                t_[3 * i + size_t(k)] = eval::gridCoordinate(p, lattice.lower[k], factor[k]);
+                t[3 * i + size_t(k)] = eval::gridCoordinate(p, lattice.lower[k], factor[k]);
             }
     }
 
