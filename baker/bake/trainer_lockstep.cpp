@@ -51,12 +51,11 @@ struct CacheLineAllocator {
 };
 
 // What a voxel's candidates share, prepared once for all of them (and freed when the last of them ends): the
-// samples packed for the lanes (64 bytes a sample), the shuffles' multipliers (16), the held-out samples as each
-// epoch's check reads them, the voxel's scale. Six candidates a voxel train at once in neighbouring lanes (a 1 MB
-// zdm2 bake's largest voxels hold 30,000-67,000 samples).
+// samples packed for the lanes (64 bytes a sample), the held-out samples as each epoch's check reads them, the
+// voxel's scale. Six candidates a voxel train at once in neighbouring lanes (a 1 MB zdm2 bake's largest voxels
+// hold 30,000-67,000 samples).
 struct VoxelData {
     std::vector<size_t> train;  // the training samples' indices (PreparedSamples::train)
-    std::vector<Uint128> shuffleMultipliers;  // remainderMultiplier(i) at i, for the epochs' shuffles of train
     std::vector<float, CacheLineAllocator<float>> packed;  // a sample a cache line
     std::vector<float> heldOutInputs, heldOutTerms;
     size_t heldOutCount = 0;
@@ -69,8 +68,6 @@ struct VoxelData {
         if (d.targets.size() >= size_t(UINT32_MAX)) throw std::length_error("a network's training samples number 2^32 or more");
         train = d.train;
         heldOutCount = d.heldOut.size();
-        shuffleMultipliers.resize(train.size() + 1);
-        for (size_t i = 2; i <= train.size(); ++i) shuffleMultipliers[i] = remainderMultiplier(i);
         // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
         double meanLum = 0.0;
         for (size_t i : d.train) {
@@ -271,14 +268,13 @@ private:
         if (!d_.entries) d_ = prepareSamples(voxel_, entries_, s_, 0);
     }
     void beginEpoch() {
-        // order_.below(i) for each i, as the plain trainer draws it, by the voxel's multipliers: a block's draws first
-        // (they do not depend on the order, and their multiplications overlap), then its swaps.
-        const Uint128* multiplier = data_->shuffleMultipliers.data();
+        // order_.below(i) for each i, as the plain trainer draws it: a block's draws first (drawBelowDescending: they
+        // do not depend on the order, eight at a time with AVX-512), then its swaps.
         uint32_t draw[64];
         for (size_t i = perm_.size(); i > 1;) {
-            const size_t block = std::min<size_t>(64, i - 1);
-            for (size_t k = 0; k < block; ++k) draw[k] = uint32_t(remainderBy(order_.next(), multiplier[i - k], i - k));
-            for (size_t k = 0; k < block; ++k, --i) std::swap(perm_[i - 1], perm_[draw[k]]);
+            const uint32_t block = uint32_t(std::min<size_t>(64, i - 1));
+            drawBelowDescending(order_, i, block, draw);
+            for (uint32_t k = 0; k < block; ++k, --i) std::swap(perm_[i - 1], perm_[draw[k]]);
         }
         rate_ = exponentialDecay(s_.learningRate, 0.1f, float(epoch_) / float(std::max(1, s_.epochs)));
         at_ = 0;

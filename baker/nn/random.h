@@ -22,16 +22,16 @@ private:
     uint64_t state_;
 };
 
-// x % n without a division, for a divisor used many times: with M = ceil(2^128 / n) (remainderMultiplier(n)), x % n
-// is the high word of (M x mod 2^128) n, exact for every 64-bit x and n (Lemire, Kaser and Kurz, "Faster remainder
-// by direct computation", 2019). The training's shuffles draw below(i) for every i of a voxel's samples in every
-// epoch; a 64-bit division each cost about as much as the sample's training step.
-using Uint128 = unsigned __int128;
-inline Uint128 remainderMultiplier(uint64_t n) { return ~Uint128(0) / n + 1; }
-inline uint64_t remainderBy(uint64_t x, Uint128 multiplier, uint64_t n) {
-    const Uint128 low = multiplier * x;
-    const Uint128 bottom = (Uint128(uint64_t(low)) * n) >> 64, top = Uint128(uint64_t(low >> 64)) * n;
-    return uint64_t((bottom + top) >> 64);
-}
+// out[k] = below(top - k) for k < count, as `count` calls in turn give them (the draws of a Fisher-Yates shuffle
+// of `top` items; 1 <= top - count + 1, top < 2^32): the training's shuffles draw one for every sample of a voxel
+// in every epoch. The outputs one by one, their remainders by remaindersDescending.
+void drawBelowDescending(SplitMix64& rng, uint64_t top, uint32_t count, uint32_t* out);
+
+// out[k] = x[k] % (top - k) for k < count (1 <= top - count + 1, top < 2^32), exact without a 64-bit division: x in
+// three digits of 22, 21 and 21 bits, each step's remainder from a double quotient corrected by one (random.cpp);
+// eight at a time with AVX-512 (F and DQ) where the CPU has it, else one by one (the same bits: both exact).
+void remaindersDescending(const uint64_t* x, uint64_t top, uint32_t count, uint32_t* out);
+// The one-by-one path, for tests on machines that have AVX-512.
+void remaindersDescendingScalar(const uint64_t* x, uint64_t top, uint32_t count, uint32_t* out);
 
 }  // namespace nrad

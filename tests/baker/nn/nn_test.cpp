@@ -210,26 +210,49 @@ TEST(Schedule, EndPoints) {
     EXPECT_EQ(linearDecay(2.0f, 3.0f), 0.0f);
 }
 
-// The training's shuffles draw x % n by a multiply (remainderBy): the division's remainder for every x and n, at
-// the edges of both (n near powers of two, x near multiples of n and at 2^64 - 1) and at random.
-TEST(Random, RemainderByMultiplyIsTheDivisionsRemainder) {
-    std::vector<uint64_t> divisors = {1, 2, 3, 5, 7, 10, 1000, 5925, 65535, 65536, 65537, (1ull << 32) - 1, 1ull << 32, (1ull << 32) + 1,
-                                      (1ull << 63) - 1, 1ull << 63, ~0ull - 1, ~0ull};
+// The training's shuffles take x % n by digits and double quotients (remaindersDescending): the division's
+// remainder for every x and n < 2^32, at the edges of both (n near powers of two and 2^32, x near multiples of n and
+// at 2^64 - 1) and at random, on the AVX-512 path where the CPU has it and on the one-by-one path; and the draws
+// are those of below() in turn.
+TEST(Random, RemaindersByDigitsAreTheDivisionsRemainders) {
+    std::vector<uint64_t> divisors = {1, 2, 3, 5, 7, 10, 1000, 5925, 65535, 65536, 65537, (1ull << 21) - 1, 1ull << 21,
+                                      (1ull << 22) + 1, (1ull << 31) - 1, 1ull << 31, (1ull << 32) - 2, (1ull << 32) - 1};
     SplitMix64 rng(3);
     for (int k = 0; k < 2000; ++k) divisors.push_back(1 + rng.below(1u << 20));
-    for (int k = 0; k < 200; ++k) divisors.push_back(rng.next() >> (rng.next() % 64));
+    for (int k = 0; k < 300; ++k) divisors.push_back(1 + (rng.next() >> (32 + rng.next() % 32)));
     uint64_t checked = 0;
     for (uint64_t n : divisors) {
-        if (n == 0) continue;
-        const Uint128 m = remainderMultiplier(n);
-        std::vector<uint64_t> xs = {0, 1, n - 1, n, n + 1, 2 * n - 1, 2 * n, ~0ull, ~0ull - 1, ~0ull - n, (~0ull / n) * n, (~0ull / n) * n - 1};
+        ASSERT_TRUE(n >= 1 && n < (1ull << 32));
+        std::vector<uint64_t> xs = {0, 1, n - 1, n, n + 1, 2 * n - 1, 2 * n, ~0ull, ~0ull - 1, ~0ull - n, (~0ull / n) * n, (~0ull / n) * n - 1,
+                                    (1ull << 53) - 1, 1ull << 53, (1ull << 42) * n, (1ull << 42) * n - 1};
         for (int k = 0; k < 500; ++k) xs.push_back(rng.next());
-        for (uint64_t x : xs) {
-            ASSERT_EQ(remainderBy(x, m, n), x % n) << "x " << x << " n " << n;
-            ++checked;
+        // Lane j divides by n + j - (count - 1) ... : every x against every lane's divisor near n.
+        for (size_t first = 0; first < xs.size(); first += 8) {
+            const uint32_t count = uint32_t(std::min<size_t>(xs.size() - first, std::min<uint64_t>(n, 8)));
+            const uint64_t top = n - 1 + count;  // the last lane divides by n
+            if (top >= (1ull << 32)) continue;
+            uint32_t fast[8], plain[8];
+            remaindersDescending(&xs[first], top, count, fast);
+            remaindersDescendingScalar(&xs[first], top, count, plain);
+            for (uint32_t k = 0; k < count; ++k) {
+                ASSERT_EQ(fast[k], xs[first + k] % (top - k)) << "x " << xs[first + k] << " n " << top - k;
+                ASSERT_EQ(plain[k], xs[first + k] % (top - k)) << "x " << xs[first + k] << " n " << top - k;
+                ++checked;
+            }
         }
     }
-    EXPECT_GT(checked, 1000000u);
+    EXPECT_GT(checked, 700000u);
+    // The shuffle's draws: below(top), below(top - 1), ... in turn, for blocks of any length.
+    for (uint64_t top : {2ull, 9ull, 64ull, 65ull, 1000ull, 5925ull, (1ull << 32) - 1}) {
+        for (uint32_t count : {1u, 7u, 8u, 9u, 63u, 64u, 65u, 200u}) {
+            if (count > top - 1) continue;
+            SplitMix64 a(top * 31 + count), b(top * 31 + count);
+            std::vector<uint32_t> drawn(count);
+            drawBelowDescending(a, top, count, drawn.data());
+            for (uint32_t k = 0; k < count; ++k) ASSERT_EQ(drawn[k], b.below(top - k)) << "top " << top << " draw " << k;
+            EXPECT_EQ(a.next(), b.next());
+        }
+    }
 }
 
 TEST(Mlp, InitialisationIsDeterministic) {
