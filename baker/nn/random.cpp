@@ -6,6 +6,7 @@ namespace nrad {
 
 #if defined(__x86_64__) || defined(_M_X64)
 void remaindersDescendingAvx512(const uint64_t* x, uint64_t top, uint32_t count, uint32_t* out);
+void drawBelowDescendingAvx512(SplitMix64& rng, uint64_t top, uint32_t count, uint32_t* out);
 #endif
 
 namespace {
@@ -53,6 +54,9 @@ void remaindersDescending(const uint64_t* x, uint64_t top, uint32_t count, uint3
 }
 
 void drawBelowDescending(SplitMix64& rng, uint64_t top, uint32_t count, uint32_t* out) {
+#if defined(__x86_64__) || defined(_M_X64)
+    if (hasAvx512dq()) return drawBelowDescendingAvx512(rng, top, count, out);
+#endif
     uint64_t x[64];
     for (uint32_t first = 0; first < count; first += 64) {
         const uint32_t n = count - first < 64 ? count - first : 64;
