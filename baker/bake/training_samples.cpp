@@ -307,7 +307,7 @@ void storeTargets(const PointStarts& ps, const VoxelGrid& grid, const std::vecto
 
 // The order in which the points are traced: along a Morton curve through the scene's box (by each point's
 // position, 21 bits an axis), so that a chunk's paths start near each other and meet the same parts of the scene
-// (the acceleration structure's nodes and the triangles' data stay in the caches): zdm2's sampling 10% faster
+// (the acceleration structure's nodes and the triangles' data stay in the caches): zdm2's sampling 10-17% faster
 // (docs/performance.md). Each point's samples depend on its own request alone, so the order changes no bit; ties
 // keep the list order.
 std::vector<uint32_t> spatialOrder(const PointStarts& ps, const std::vector<PointRequest>& requests) {
@@ -350,9 +350,10 @@ bool plausible(const TrainingSample& t, uint64_t voxels) {
     return t.voxel < voxels;
 }
 
-// Every process's traced blocks (of positions in the tracing order `order`) into `out` and `valid`, and the counts of its paths summed into `stats` (the
-// points' counts, decided before tracing, are every process's own). In rounds of at most 64 blocks from each
-// process, so that what is in flight stays small beside `out` (all of it at once doubled a process's peak memory).
+// Every process's traced blocks (of positions in the tracing order `order`) into `out` and `valid`, and the counts
+// of its paths summed into `stats` (the points' counts, decided before tracing, are every process's own). In rounds
+// of at most 64 blocks from each process, so that what is in flight stays small beside `out` (all of it at once
+// doubled a process's peak memory).
 void gatherShares(const BakeGroup& group, const BlockShares& shares, const std::vector<uint32_t>& order, std::vector<TrainingSample>& out,
                   std::vector<uint8_t>& valid, SampleStats& stats, uint64_t voxels) {
     {

@@ -1,7 +1,6 @@
 // drawBelowDescending (random.h): one by one, or eight at a time with AVX-512 (random_avx512.cpp).
 #include "baker/nn/random.h"
 
-
 namespace nrad {
 
 #if defined(__x86_64__) || defined(_M_X64)
@@ -11,7 +10,7 @@ void drawBelowDescendingAvx512(SplitMix64& rng, uint64_t top, uint32_t count, ui
 
 namespace {
 
-// x mod n for a 64-bit x and 2 <= n < 2^32, digit by digit: each step's v = r 2^21 + d is below n 2^21 <= 2^53, so
+// x mod n for a 64-bit x and 1 <= n < 2^32, digit by digit: each step's v = r 2^21 + d is below n 2^21 <= 2^53, so
 // exact in double, and its quotient floor(v / n) from the double product v (1 / n) is off by at most one (v / n <
 // 2^22, the product's rounding far below one); v - q n in integers, corrected into [0, n). Exact, so the same bits
 // as any other exact remainder (random_avx512.cpp's lanes).

@@ -38,8 +38,8 @@ void drawBelowDescending(SplitMix64& rng, uint64_t top, uint32_t count, uint32_t
 
 // out[k] = x[k] % (top - k) for k < count (1 <= top - count + 1, top < 2^32), exact without a 64-bit division: x in
 // three digits of 22, 21 and 21 bits, each step's remainder from a double quotient corrected by one (random.cpp,
-// random_avx512.cpp);
-// eight at a time with AVX-512 (F and DQ) where the CPU has it, else one by one (the same bits: both exact).
+// random_avx512.cpp); eight at a time with AVX-512 (F and DQ) where the CPU has it, else one by one (the same bits:
+// both exact).
 void remaindersDescending(const uint64_t* x, uint64_t top, uint32_t count, uint32_t* out);
 // The one-by-one path, for tests on machines that have AVX-512.
 void remaindersDescendingScalar(const uint64_t* x, uint64_t top, uint32_t count, uint32_t* out);
