@@ -81,6 +81,7 @@ struct BakeOptions {
     bool traceOnly = false;
     int threads = 0;
     bool quiet = false, dumpConfig = false;
+    std::string preset;  // --preset NAME: settings under the config file's and the flags'
 
     std::string grid = gridText(defaults().grid), hidden = hiddenText(defaults().train.shape.hidden);
     std::string loss = lossName(defaults().train.loss), encoding = encodingName(defaults().encoding);
@@ -679,9 +680,24 @@ int agreed(const BakeGroup* group, int code) {
     return first.get<int32_t>();
 }
 
-// The settings from --config (its keys into configKeys) and the flags; with --dump-config they are printed (if
-// `print`) and `dumped` is set: the command ends there.
+// The settings of --preset NAME, as --config keys; null for a name that is none. "production" is the defaults;
+// "preview" trades error for time: paths cut at six segments, no extra paths for noisy targets, one start a network
+// (the Cornell box 3.7 s against 7 s, at 2.2x the relMSE; docs/performance.md, "Bake time against error").
+nlohmann::json presetSettings(const std::string& name) {
+    if (name == "production") return nlohmann::json::object();
+    if (name == "preview") return {{"max_depth", 6}, {"noisy_paths", 1}, {"restarts", 1}};
+    return nullptr;
+}
+
+// The settings from --preset, then --config (its keys into configKeys; they win over the preset's) and the flags
+// (which win over both); with --dump-config they are printed (if `print`) and `dumped` is set: the command ends
+// there.
 int readSettings(BakeOptions& o, CLI::App* cmd, bool print, std::set<std::string>& configKeys, BakeSettings& s, bool& dumped) {
+    if (!o.preset.empty()) {
+        const nlohmann::json preset = presetSettings(o.preset);
+        if (preset.is_null()) return usage("--preset " + o.preset + ": expected preview or production");
+        bakeSettingsTable(o).readConfig(preset, cmd);
+    }
     if (!o.config.empty())
         if (int code = readConfig(o, cmd, configKeys)) return code;
     if (int code = settingsFromOptions(o, s)) return code;
@@ -899,6 +915,9 @@ std::function<int()> addBakeCommand(CLI::App& app) {
     cmd->add_option("--threads", o->threads, "Worker threads; 0 = all (does not change the asset)")->check(CLI::Range(0, 4096));
     cmd->add_option("--config", o->config,
                     "JSON file of bake settings (keys as the flags, with underscores, \"--no-X\" as \"X\": false); flags win");
+    cmd->add_option("--preset", o->preset,
+                    "preview (paths cut at 6 segments, no extra paths for noisy targets, one start a network: about half the "
+                    "bake time at about twice the error) or production (the defaults); --config's keys and the flags win");
     cmd->add_flag("--dump-config", o->dumpConfig,
                   "Print every setting as --config reads it (the file's and the flags' values, the rest at their defaults) and "
                   "exit without baking");

@@ -260,7 +260,7 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
         if (std::istringstream(line) >> names && names[0] == '-')
             for (const std::string& name : {names.substr(0, names.find(',')), names.substr(names.find(',') + 1)})
                 if (name.compare(0, 2, "--") == 0) helpFlags.insert(name);
-    for (const char* notSetting : {"--help", "--output", "--config", "--dump-config", "--stats", "--threads", "--quiet", "--save-generations",
+    for (const char* notSetting : {"--help", "--output", "--config", "--preset", "--dump-config", "--stats", "--threads", "--quiet", "--save-generations",
                                    "--shard", "--trace-only", "--traced"})
         helpFlags.erase(notSetting);
     const std::string dir = test::temporaryDirectory();
@@ -305,6 +305,31 @@ TEST(CliBake, EverySettingRoundTripsThroughConfig) {
     ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/plain.nrad'" + small).exitCode, 0);
     EXPECT_EQ(readFileBytes(dir + "/flags.nrad"), readFileBytes(dir + "/keys.nrad"));
     EXPECT_NE(readFileBytes(dir + "/flags.nrad"), readFileBytes(dir + "/plain.nrad"));
+}
+
+// --preset: its settings, under a config file's and the flags'; the same bytes as its flags; an unknown name refused.
+TEST(CliBake, PresetsGiveTheirSettingsUnderTheConfigAndTheFlags) {
+    const nlohmann::json defaults = dumpedConfig("");
+    EXPECT_EQ(dumpedConfig("--preset production"), defaults);
+    nlohmann::json preview = defaults;
+    preview["max_depth"] = 6;
+    preview["noisy_paths"] = 1;
+    preview["restarts"] = 1;
+    EXPECT_EQ(dumpedConfig("--preset preview"), preview);
+    const std::string dir = test::temporaryDirectory();
+    std::ofstream(dir + "/depth.json") << R"({"max_depth": 4})";
+    nlohmann::json mixed = preview;
+    mixed["max_depth"] = 4;  // the file wins over the preset
+    mixed["restarts"] = 2;  // the flag wins over both
+    EXPECT_EQ(dumpedConfig("--preset preview --config '" + dir + "/depth.json' --restarts 2"), mixed);
+    const std::string small = " --grid 2 --points 300 --paths 2 --epochs 10 -q";
+    ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/preset.nrad' --preset preview" + small).exitCode, 0);
+    ASSERT_EQ(run("bake " + cornell() + " -o '" + dir + "/flags.nrad' --max-depth 6 --noisy-paths 1 --restarts 1" + small).exitCode, 0);
+    EXPECT_EQ(readFileBytes(dir + "/preset.nrad"), readFileBytes(dir + "/flags.nrad"));
+    const RunResult r = run("bake " + cornell() + " -o '" + dir + "/x.nrad' --preset fastest -q");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find("--preset fastest: expected preview or production"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/x.nrad"));
 }
 
 TEST(CliBake, BadFlagsAndScenesWriteNothing) {
