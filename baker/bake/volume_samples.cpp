@@ -7,6 +7,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "baker/bake/training_samples.h"
 #include "baker/nn/random.h"
 #include "baker/util/maths.h"
 
@@ -69,7 +70,11 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
     const uint64_t cells = partition.cells;
     const uint32_t per = settings.pointsPerCell, paths = std::max(1u, settings.paths);
     std::vector<std::vector<TrainingSample>> byCell(cells);  // what a cell keeps (memory: the kept points only)
-    std::atomic<uint64_t> inside{0}, rays{0};
+    std::atomic<uint64_t> inside{0}, rays{0}, noisyPoints{0}, extraPaths{0};
+    SampleSettings noisy;  // the bound of noisyExtraPaths, counted on from the volume's paths
+    noisy.paths = paths;
+    noisy.extraPathsFactor = settings.extraPathsFactor;
+    noisy.noisyRelativeError = settings.noisyRelativeError;
     // The points of a chunk traced together: a few tracer batches of paths at a time, whatever N and the paths.
     const size_t chunk = std::max<size_t>(1, size_t(4 * kBatchSize) / paths);
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, cells, 1), [&](const tbb::blocked_range<uint64_t>& range) {
@@ -77,6 +82,7 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
         std::vector<SurfaceInteraction> starts;
         std::vector<PathStart> batch;
         std::vector<glm::vec3> estimates;
+        std::vector<uint32_t> extraOf;
         for (uint64_t c = range.begin(); c != range.end(); ++c) {
             glm::vec3 lo, hi;
             cellBox(partition, c, lo, hi);
@@ -115,14 +121,46 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
                         batch.push_back({&starts[k], uint32_t((c * per + index[k]) * 0x9e3779b1u) ^ seed ^ (glossy ? 0x2545f491u : 0x5f3759dfu), j});
                 estimates.resize(batch.size());
                 if (!batch.empty()) tracer.estimate(batch.data(), batch.size(), maxDepth, nullptr, 1, counters, estimates.data());
-                for (size_t k = 0; k < starts.size(); ++k) {
-                    glm::dvec3 sum(0.0);
+                // Noisy targets: the paths that bring the mean's relative standard error to the bound, numbered on
+                // from `paths` (noisyExtraPaths, as the surfaces' points), traced together.
+                extraOf.assign(starts.size(), 0);
+                const size_t firstExtra = batch.size();
+                for (size_t k = 0; k < starts.size() && noisy.extraPathsFactor > 1 && paths > 1; ++k) {
+                    double s1 = 0.0, s2 = 0.0;
                     uint32_t n = 0;
                     for (uint32_t j = 0; j < paths; ++j) {
                         const glm::vec3& L = estimates[k * paths + j];
                         if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
+                        const double l = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
+                        s1 += l;
+                        s2 += l * l;
+                        ++n;
+                    }
+                    if (n < 2 || !(s1 > 0.0)) continue;
+                    const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
+                    extraOf[k] = noisyExtraPaths(mean, var, n, noisy);
+                    for (uint32_t j = 0; j < extraOf[k]; ++j) batch.push_back({&starts[k], batch[k * paths].stream, paths + j});
+                }
+                if (batch.size() > firstExtra) {
+                    estimates.resize(batch.size());
+                    tracer.estimate(batch.data() + firstExtra, batch.size() - firstExtra, maxDepth, nullptr, 1, counters,
+                                    estimates.data() + firstExtra);
+                }
+                size_t extraAt = firstExtra;
+                for (size_t k = 0; k < starts.size(); ++k) {
+                    glm::dvec3 sum(0.0);
+                    uint32_t n = 0;
+                    auto add = [&](const glm::vec3& L) {
+                        if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) return;
                         sum += glm::dvec3(L);
                         ++n;
+                    };
+                    for (uint32_t j = 0; j < paths; ++j) add(estimates[k * paths + j]);
+                    for (uint32_t j = 0; j < extraOf[k]; ++j) add(estimates[extraAt + j]);
+                    extraAt += extraOf[k];
+                    if (extraOf[k] > 0) {
+                        ++noisyPoints;
+                        extraPaths += extraOf[k];
                     }
                     if (n == 0) continue;
                     TrainingSample t;
@@ -150,6 +188,8 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
     stats.tried = cells * per;
     stats.inside = inside;
     stats.rays = rays;
+    stats.noisyPoints = noisyPoints;
+    stats.extraPaths = extraPaths;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return out;
 }

@@ -20,6 +20,10 @@ struct VolumeSettings {
     bool enabled = false;  // nrad bake --volume-points N (N > 0)
     uint32_t pointsPerCell = 1000;  // tried in each cell's box (those inside a closed solid are dropped)
     uint32_t paths = 32;  // per point
+    // Noisy targets get more paths, as the surfaces' do (SampleSettings::extraPathsFactor and noisyRelativeError,
+    // which the bake copies here): up to extraPathsFactor x paths in all; 1: none.
+    uint32_t extraPathsFactor = 1;
+    float noisyRelativeError = 0.15f;
     // Also the glossy response (nrad bake --volume-glossy): networks of the same cells for the radiance a GGX
     // receiver of roughness eval::kGlossyRoughness and Fresnel 1 reflects towards a viewer, over eval::glossyAlbedo.
     bool glossy = false;
@@ -28,6 +32,7 @@ struct VolumeSettings {
 struct VolumeStats {
     uint64_t tried = 0, inside = 0;  // points tried; of them inside a closed solid (dropped)
     uint64_t rays = 0;
+    uint64_t noisyPoints = 0, extraPaths = 0;  // points that got more paths (VolumeSettings::extraPathsFactor), and those paths
     double seconds = 0.0;
 };
 
@@ -35,7 +40,8 @@ struct VolumeStats {
 // either of two random directions first meets the back of an opaque single-sided surface (inside a closed
 // solid, or behind a surface lying on another); each with a uniform random unit normal, its target E(x, n) / pi
 // from `paths` paths of the tracer (next event estimation and BSDF sampling of a white Lambertian receiver, cut at
-// maxDepth segments: 0 unbounded), `voxel` its cell, reflectance 1. Deterministic for a seed, whatever the threads.
+// maxDepth segments: 0 unbounded), and more for a noisy one (VolumeSettings::extraPathsFactor), `voxel` its cell,
+// reflectance 1. Deterministic for a seed, whatever the threads.
 // glossy: the glossy response's samples instead (eval.h's glossy query): the same points tried (another normal), each
 // with a direction v towards a viewer uniform over the hemisphere of its normal (TrainingSample::wo), its target
 // the radiance the GGX receiver (glossyReceiverAt) reflects towards v over eval::glossyAlbedo(n.v).

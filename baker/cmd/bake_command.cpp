@@ -209,7 +209,9 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--batch-size", &o.batch, "Mini-batch size");
     t.add("--patience", &o.patience, "Stop a voxel after this many epochs without a better held-out error");
     t.add("--learning-rate", &o.learningRate, "Adam learning rate at the start");
-    t.add("--loss", &o.loss, "l2, relative-l2 or log-l2");
+    t.add("--loss", &o.loss,
+          "l2, relative-l2, symmetric-relative-l2 or log-l2 (the volume's networks train with symmetric-relative-l2 "
+          "where the surfaces' is relative-l2)");
     t.add("--encoding", &o.encoding, "Weight encoding: fp16 or fp32");
     t.add("--min-samples-per-voxel", &o.minSamples, "Floor of samples for a voxel with surface");
     t.add("--training", &o.training,
@@ -291,7 +293,7 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     if (!parseGrid(o.grid, s.grid)) return usage("--grid " + o.grid + ": expected N or NxMxK with 1..256 voxels per axis");
     if (!parseHidden(o.hidden, s.train.shape.hidden))
         return usage("--hidden " + o.hidden + ": expected widths 1..256, comma-separated, at most 8 layers");
-    if (!parseLoss(o.loss, s.train.loss)) return usage("--loss " + o.loss + ": expected l2, relative-l2 or log-l2");
+    if (!parseLoss(o.loss, s.train.loss)) return usage("--loss " + o.loss + ": expected l2, relative-l2, symmetric-relative-l2 or log-l2");
     if (o.encoding == "fp16")
         s.encoding = format::WeightEncoding::Float16;
     else if (o.encoding == "fp32")
@@ -557,8 +559,9 @@ void printVolume(const BakeResult& r) {
     double mean, worst;
     heldOut(r.volume, mean, worst);
     std::printf("volume: %zu networks of the light for receivers not in the bake, from %llu points tried in the cells (%llu "
-                "inside closed solids, dropped), held-out relMSE mean %.4g worst %.4g",
-                r.volume.size(), (unsigned long long)r.volumeStats.tried, (unsigned long long)r.volumeStats.inside, mean, worst);
+                "inside closed solids, dropped; %llu noisy with %llu extra paths), held-out relMSE mean %.4g worst %.4g",
+                r.volume.size(), (unsigned long long)r.volumeStats.tried, (unsigned long long)r.volumeStats.inside,
+                (unsigned long long)r.volumeStats.noisyPoints, (unsigned long long)r.volumeStats.extraPaths, mean, worst);
     if (!r.glossy.empty()) {
         heldOut(r.glossy, mean, worst);
         std::printf("; glossy response (roughness %.1f): %zu networks, held-out relMSE mean %.4g worst %.4g", double(eval::kGlossyRoughness),
@@ -658,6 +661,8 @@ int writeBakeStats(const BakeOptions& o, const BakeSettings& s, const Scene& sce
             return cells;
         };
         j["volume"] = {{"points_tried", r.volumeStats.tried}, {"points_inside_solids", r.volumeStats.inside},
+                       {"noisy_points", r.volumeStats.noisyPoints + r.glossyStats.noisyPoints},
+                       {"extra_paths", r.volumeStats.extraPaths + r.glossyStats.extraPaths},
                        {"rays", r.volumeStats.rays + r.glossyStats.rays}, {"seconds", r.timings.volume}, {"networks", networks(r.volume)}};
         if (s.volume.glossy) j["volume"]["glossy_networks"] = networks(r.glossy);
     }

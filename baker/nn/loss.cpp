@@ -11,13 +11,14 @@ const char* lossName(LossKind loss) {
     switch (loss) {
         case LossKind::L2: return "l2";
         case LossKind::RelativeL2: return "relative-l2";
+        case LossKind::SymmetricRelativeL2: return "symmetric-relative-l2";
         case LossKind::Log: return "log-l2";
     }
     return "?";
 }
 
 bool parseLoss(const std::string& name, LossKind& loss) {
-    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::Log})
+    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log})
         if (name == lossName(k)) {
             loss = k;
             return true;
@@ -35,6 +36,10 @@ void regressionGradient(LossKind loss, const float y[3], const float t[3], const
     if (loss == LossKind::RelativeL2) {
         const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
         w = 1.0f / (l * l + 0.01f);
+    } else if (loss == LossKind::SymmetricRelativeL2) {
+        const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
+        const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
+        w = 1.0f / (0.5f * (l * l + m * m) + 0.01f);
     }
     for (int c = 0; c < 3; ++c) dy[c] = 2.0f * w * weight[c] * (y[c] - t[c]);
 }

@@ -12,6 +12,9 @@ namespace nrad {
 enum class LossKind {
     L2,  // squared error on radiance / voxel scale
     RelativeL2,  // squared error / (luminance of the prediction^2 + 0.01), prediction held constant
+    // squared error / (the mean of the prediction's and the target's luminance^2 + 0.01), prediction held constant:
+    // a prediction far above a dark target is not excused by its own brightness (the volume's networks)
+    SymmetricRelativeL2,
     Log,  // squared error on log(1 + radiance / scale); the asset's output transform is then exponential
 };
 const char* lossName(LossKind loss);

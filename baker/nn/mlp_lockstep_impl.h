@@ -192,6 +192,15 @@ inline void Step<V>::lossGradient(LossKind loss) {
             const V lum = V::splat(0.2126f) * whereAboveZero(y0, y0) + V::splat(0.7152f) * whereAboveZero(y1, y1) +
                            V::splat(0.0722f) * whereAboveZero(y2, y2);
             w = V::splat(1.0f) / (lum * lum + V::splat(0.01f));
+        } else if (loss == LossKind::SymmetricRelativeL2) {
+            const V y0 = V::load(y), y1 = V::load(y + W), y2 = V::load(y + 2 * W);
+            const V lum = V::splat(0.2126f) * whereAboveZero(y0, y0) + V::splat(0.7152f) * whereAboveZero(y1, y1) +
+                           V::splat(0.0722f) * whereAboveZero(y2, y2);
+            const V t0 = V::load(row + size_t(kPackedTarget) * W), t1 = V::load(row + size_t(kPackedTarget + 1) * W),
+                    t2 = V::load(row + size_t(kPackedTarget + 2) * W);
+            const V tl = V::splat(0.2126f) * whereAboveZero(t0, t0) + V::splat(0.7152f) * whereAboveZero(t1, t1) +
+                          V::splat(0.0722f) * whereAboveZero(t2, t2);
+            w = V::splat(1.0f) / (V::splat(0.5f) * (lum * lum + tl * tl) + V::splat(0.01f));
         }
         const V kk = V::splat(float(k));
         for (int c = 0; c < 3; ++c) {

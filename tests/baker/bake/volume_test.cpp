@@ -222,6 +222,33 @@ TEST(VolumeLight, AReceiverInASealedDarkRoomReadsItsDarknessNotTheLitRoom) {
     EXPECT_LT(darkest, 0.05 * lit);  // measured 1.7%: the goal is within 10% of the reference
 }
 
+// The volume's noisy targets get the paths that bring their relative standard error to the bound (as the surfaces'
+// do, --noisy-paths): some points of the lit room, at most (factor - 1) x paths more each; none with the factor 1.
+TEST(VolumeLight, NoisyTargetsGetMorePathsWithinTheBound) {
+    Scene scene = loadGltf(test::sourcePath("scenes/sealed-rooms/sealed-rooms.gltf"));
+    BakeSettings s;
+    s.samples.points = 4000;
+    s.samples.paths = 4;
+    s.train.epochs = 20;
+    s.train.restarts = 1;
+    s.volume.enabled = true;
+    s.volume.pointsPerCell = 100;
+    s.volume.paths = 8;
+    s.samples.extraPathsFactor = 4;
+    const BakeResult more = bakeScene(scene, s);
+    s.samples.extraPathsFactor = 1;
+    const BakeResult none = bakeScene(scene, s);
+    std::printf("volume: %llu of %llu points noisy, %llu extra paths\n", (unsigned long long)more.volumeStats.noisyPoints,
+                (unsigned long long)(more.volumeStats.tried - more.volumeStats.inside), (unsigned long long)more.volumeStats.extraPaths);
+    EXPECT_GT(more.volumeStats.noisyPoints, 0u);
+    EXPECT_LT(more.volumeStats.noisyPoints, more.volumeStats.tried - more.volumeStats.inside);  // the dark room's are exact
+    EXPECT_GE(more.volumeStats.extraPaths, more.volumeStats.noisyPoints);
+    EXPECT_LE(more.volumeStats.extraPaths, more.volumeStats.noisyPoints * 3u * 8u);
+    EXPECT_GT(more.volumeStats.rays, none.volumeStats.rays);
+    EXPECT_EQ(none.volumeStats.noisyPoints, 0u);
+    EXPECT_EQ(none.volumeStats.extraPaths, 0u);
+}
+
 TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
     const Scene scene = skyScaffold(glm::vec3(1.0f));
     BakeSettings s = volumeBake();

@@ -44,6 +44,11 @@ void referenceStep(const NetworkShape& s, std::vector<float>& p, std::vector<flo
         if (loss == LossKind::RelativeL2) {
             const float lum = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
             w = 1.0f / (lum * lum + 0.01f);
+        } else if (loss == LossKind::SymmetricRelativeL2) {
+            const float lum = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
+            const float t = 0.2126f * std::max(0.0f, row[kPackedTarget]) + 0.7152f * std::max(0.0f, row[kPackedTarget + 1]) +
+                            0.0722f * std::max(0.0f, row[kPackedTarget + 2]);
+            w = 1.0f / (0.5f * (lum * lum + t * t) + 0.01f);
         }
         for (int c = 0; c < 3; ++c) d[L].push_back(2.0f * w * row[kPackedWeight + c] * (y[size_t(c)] - row[kPackedTarget + c]));
         for (size_t l = L - 1; l >= 1; --l) {
@@ -146,7 +151,7 @@ TEST(MlpLockstep, EveryLaneIsItsNetworkTrainedAloneBitForBit) {
     const std::vector<LockstepKernel> kernels = lockstepKernels();
     for (const LockstepKernel& k : kernels) std::printf("lockstep kernel %s (%d lanes)\n", k.name, k.lanes);
     for (const NetworkShape& s : shapes())
-        for (LossKind loss : {LossKind::RelativeL2, LossKind::L2})
+        for (LossKind loss : {LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::L2})
             for (const LockstepKernel& k : kernels)
                 EXPECT_EQ(mismatches(s, loss, k), 0u) << k.name << ", " << s.hidden.size() << " hidden layers, " << lossName(loss);
 }

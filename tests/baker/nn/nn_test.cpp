@@ -130,12 +130,15 @@ TEST(Mlp, BatchKernelsAgreeWithThePlainPass) {
 
 TEST(Loss, RegressionGradientsMatchFiniteDifferences) {
     const float t[3] = {0.7f, 1.3f, 0.2f}, w[3] = {1.0f, 0.5f, 2.0f};
-    for (LossKind loss : {LossKind::L2, LossKind::Log, LossKind::RelativeL2}) {
+    for (LossKind loss : {LossKind::L2, LossKind::Log, LossKind::RelativeL2, LossKind::SymmetricRelativeL2}) {
         float y[3] = {0.9f, 1.0f, 0.6f}, dy[3];
         regressionGradient(loss, y, t, w, dy);
-        // The relative loss holds its weight 1 / (lum(y)^2 + 0.01) constant (the prediction's luminance).
-        const float l = 0.2126f * y[0] + 0.7152f * y[1] + 0.0722f * y[2];
-        const double scale = loss == LossKind::RelativeL2 ? 1.0 / (double(l) * l + 0.01) : 1.0;
+        // The relative losses hold their weight constant: 1 / (lum(y)^2 + 0.01) (the prediction's luminance), and
+        // the symmetric one 1 / ((lum(y)^2 + lum(t)^2) / 2 + 0.01).
+        const double l = 0.2126 * y[0] + 0.7152 * y[1] + 0.0722 * y[2], m = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+        const double scale = loss == LossKind::RelativeL2            ? 1.0 / (l * l + 0.01)
+                             : loss == LossKind::SymmetricRelativeL2 ? 1.0 / (0.5 * (l * l + m * m) + 0.01)
+                                                                     : 1.0;
         for (int c = 0; c < 3; ++c) {
             auto value = [&](float v) {
                 double e = 0.0;
@@ -316,7 +319,7 @@ TEST(Trainer, ReproducesKnownFunctions) {
     VoxelGrid grid(bounds, glm::uvec3(1));
     std::vector<TrainingSample> exact = makeSamples(grid, representable, 3000);
     std::vector<TrainingSample> approx = makeSamples(grid, smooth, 3000);
-    for (LossKind loss : {LossKind::L2, LossKind::RelativeL2, LossKind::Log}) {
+    for (LossKind loss : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log}) {
         TrainSettings settings;
         settings.loss = loss;
         settings.epochs = 600;
