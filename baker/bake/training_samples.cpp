@@ -214,6 +214,22 @@ uint32_t noisyExtraPaths(double mean, double variance, uint32_t n, const SampleS
     return uint32_t(std::min(double(settings.extraPathsFactor - 1) * double(settings.paths), wanted));  // (no u32 product to wrap)
 }
 
+uint32_t noisyExtraPaths(const glm::vec3* estimates, uint32_t count, const SampleSettings& settings) {
+    double s1 = 0.0, s2 = 0.0;
+    uint32_t n = 0;
+    for (uint32_t j = 0; j < count; ++j) {
+        const glm::vec3& L = estimates[j];
+        if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
+        const double l = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
+        s1 += l;
+        s2 += l * l;
+        ++n;
+    }
+    if (n < 2 || !(s1 > 0.0)) return 0;
+    const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
+    return noisyExtraPaths(mean, var, n, settings);
+}
+
 namespace {
 
 // All the range's paths traced together (PathTracer::estimate, in batches). Noisy targets: points whose
@@ -234,19 +250,7 @@ void traceRange(const PointStarts& ps, const std::vector<PointRequest>& requests
     if (!adaptive) return;
     std::vector<PathStart> more;
     for (size_t k = 0; k < points.size(); ++k) {
-        double s1 = 0.0, s2 = 0.0;
-        uint32_t n = 0;
-        for (uint32_t j = 0; j < settings.paths; ++j) {
-            const glm::vec3& L = batch.estimates[k * settings.paths + j];
-            if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
-            const double l = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
-            s1 += l;
-            s2 += l * l;
-            ++n;
-        }
-        if (n < 2 || !(s1 > 0.0)) continue;
-        const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
-        const uint32_t extra = noisyExtraPaths(mean, var, n, settings);
+        const uint32_t extra = noisyExtraPaths(&batch.estimates[k * settings.paths], settings.paths, settings);
         if (extra == 0) continue;
         batch.extraOf[k] = extra;
         batch.extraPaths += extra;

@@ -69,6 +69,8 @@ struct SampleSettings {
 // ((r / b)^2 - 1) rounded up, at most (extraPathsFactor - 1) x paths; 0 within the bound, with a factor of 1 or a
 // mean of 0.
 uint32_t noisyExtraPaths(double mean, double variance, uint32_t n, const SampleSettings& settings);
+// The same from a point's `count` path estimates (the luminance of the finite ones); 0 with fewer than two.
+uint32_t noisyExtraPaths(const glm::vec3* estimates, uint32_t count, const SampleSettings& settings);
 
 // How a sample's target is estimated: `paths` full paths (Monte Carlo), or, with a tail, `paths` estimates of
 // `bounces` bounces each with the tail standing in for the rest (PathTracer::scatteredRadiance).

@@ -126,19 +126,7 @@ std::vector<TrainingSample> generateVolumeSamples(const PathTracer& tracer, cons
                 extraOf.assign(starts.size(), 0);
                 const size_t firstExtra = batch.size();
                 for (size_t k = 0; k < starts.size() && noisy.extraPathsFactor > 1 && paths > 1; ++k) {
-                    double s1 = 0.0, s2 = 0.0;
-                    uint32_t n = 0;
-                    for (uint32_t j = 0; j < paths; ++j) {
-                        const glm::vec3& L = estimates[k * paths + j];
-                        if (!(std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))) continue;
-                        const double l = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
-                        s1 += l;
-                        s2 += l * l;
-                        ++n;
-                    }
-                    if (n < 2 || !(s1 > 0.0)) continue;
-                    const double mean = s1 / n, var = std::max(0.0, s2 / n - mean * mean) * n / (n - 1);
-                    extraOf[k] = noisyExtraPaths(mean, var, n, noisy);
+                    extraOf[k] = noisyExtraPaths(&estimates[k * paths], paths, noisy);
                     for (uint32_t j = 0; j < extraOf[k]; ++j) batch.push_back({&starts[k], batch[k * paths].stream, paths + j});
                 }
                 if (batch.size() > firstExtra) {
