@@ -68,14 +68,15 @@ struct VoxelData {
         if (d.targets.size() >= size_t(UINT32_MAX)) throw std::length_error("a network's training samples number 2^32 or more");
         train = d.train;
         heldOutCount = d.heldOut.size();
-        // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one.
+        // Per-voxel scale: the mean training luminance (weighted), so that the network works with values near one
+        // (a tenth of it for SymmetricRelativeExp, whose exp() then spans the dark end as a ratio).
         double meanLum = 0.0;
         for (size_t i : d.train) {
             meanLum += double(d.blend(i)) * std::max(0.0f, luminancef(d.targets[i]));
             weightSum += double(d.blend(i));
         }
         meanLum = weightSum > 0.0 ? meanLum / weightSum : 0.0;
-        scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) : 1.0f;
+        scale = meanLum > 1e-30 && std::isfinite(meanLum) ? float(meanLum) * scaleFraction(settings.loss) : 1.0f;
         invScale = 1.0f / scale;
         // Each sample packed for the lanes: inputs, loss targets, loss weights.
         const size_t nIn = size_t(settings.shape.inputs);
@@ -112,7 +113,7 @@ public:
              float weightDecay, int restart)
         : s_(settings), decay_(weightDecay), restart_(restart), voxel_(voxel), entries_(entries), data_(std::move(data)), mlp_(settings.shape) {
         result_.voxel = voxel;
-        result_.transform = settings.loss == LossKind::Log ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
+        result_.transform = exponentialOutput(settings.loss) ? format::OutputTransform::Exponential : format::OutputTransform::ClampedLinear;
         result_.trainCount = data_->train.size();
         result_.heldOutCount = data_->heldOutCount;
         result_.weightDecay = weightDecay;
@@ -244,7 +245,7 @@ private:
     void startAttempt() {
         const int attempt = result_.attempts++;
         const uint64_t initSeed = (uint64_t(s_.seed) << 32) ^ (uint64_t(result_.voxel) << 8) ^ uint64_t(attempt) ^ (uint64_t(restart_) << 4);
-        mlp_.initialize(initSeed, s_.loss == LossKind::Log ? std::log(2.0f) : 1.0f);
+        mlp_.initialize(initSeed, initialOutputBias(s_.loss));
         order_ = SplitMix64(initSeed ^ 0x5851f42d4c957f2dull);
         dropPrepared();
         perm_.assign(data_->train.begin(), data_->train.end());

@@ -210,8 +210,8 @@ SettingsTable bakeSettingsTable(BakeOptions& o) {
     t.add("--patience", &o.patience, "Stop a voxel after this many epochs without a better held-out error");
     t.add("--learning-rate", &o.learningRate, "Adam learning rate at the start");
     t.add("--loss", &o.loss,
-          "l2, relative-l2, symmetric-relative-l2 or log-l2 (the volume's networks train with symmetric-relative-l2 "
-          "where the surfaces' is relative-l2)");
+          "l2, relative-l2, symmetric-relative-l2, symmetric-relative-exp or log-l2 (the volume's networks train with "
+          "symmetric-relative-exp where the surfaces' is relative-l2)");
     t.add("--encoding", &o.encoding, "Weight encoding: fp16 or fp32");
     t.add("--min-samples-per-voxel", &o.minSamples, "Floor of samples for a voxel with surface");
     t.add("--training", &o.training,
@@ -293,7 +293,7 @@ int networkSettings(const BakeOptions& o, BakeSettings& s) {
     if (!parseGrid(o.grid, s.grid)) return usage("--grid " + o.grid + ": expected N or NxMxK with 1..256 voxels per axis");
     if (!parseHidden(o.hidden, s.train.shape.hidden))
         return usage("--hidden " + o.hidden + ": expected widths 1..256, comma-separated, at most 8 layers");
-    if (!parseLoss(o.loss, s.train.loss)) return usage("--loss " + o.loss + ": expected l2, relative-l2, symmetric-relative-l2 or log-l2");
+    if (!parseLoss(o.loss, s.train.loss)) return usage("--loss " + o.loss + ": expected l2, relative-l2, symmetric-relative-l2, symmetric-relative-exp or log-l2");
     if (o.encoding == "fp16")
         s.encoding = format::WeightEncoding::Float16;
     else if (o.encoding == "fp32")

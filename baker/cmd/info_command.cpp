@@ -64,9 +64,10 @@ int runInfo(const std::string& path) {
                 (a.header.flags & format::kFlagDemodulated) ? ", divided by the surface's reflectance (shading multiplies it back)" : "");
     if (!a.volumeVoxels.empty())
         std::printf("volume: %zu of %llu cells with a network of the light for receivers not in the bake (E(x, n) / pi; %llu "
-                    "bytes)\n",
+                    "bytes; output %s)\n",
                     a.volumeVoxels.size(), (unsigned long long)a.cellCount(),
-                    (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.volumeVoxels.size()));
+                    (unsigned long long)(t.parameterCount() * t.bytesPerWeight() * a.volumeVoxels.size()),
+                    a.volumeTransform() == format::OutputTransform::Exponential ? "scale x (exp(y) - 1)" : "scale x max(0, y)");
     else
         std::printf("volume: none (only the baked surfaces answer; bake --volume-points for moving objects)\n");
     if (!a.glossyVoxels.empty())

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "nrad/eval.h"
+
 namespace nrad {
 
 const char* lossName(LossKind loss) {
@@ -13,17 +15,28 @@ const char* lossName(LossKind loss) {
         case LossKind::RelativeL2: return "relative-l2";
         case LossKind::SymmetricRelativeL2: return "symmetric-relative-l2";
         case LossKind::Log: return "log-l2";
+        case LossKind::SymmetricRelativeExp: return "symmetric-relative-exp";
     }
     return "?";
 }
 
 bool parseLoss(const std::string& name, LossKind& loss) {
-    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log})
+    for (LossKind k : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log, LossKind::SymmetricRelativeExp})
         if (name == lossName(k)) {
             loss = k;
             return true;
         }
     return false;
+}
+
+bool exponentialOutput(LossKind loss) { return loss == LossKind::Log || loss == LossKind::SymmetricRelativeExp; }
+
+float scaleFraction(LossKind loss) { return loss == LossKind::SymmetricRelativeExp ? kExpScaleFraction : 1.0f; }
+
+float initialOutputBias(LossKind loss) {
+    if (loss == LossKind::Log) return std::log(2.0f);  // log(1 + 1)
+    if (loss == LossKind::SymmetricRelativeExp) return std::log(1.0f + 1.0f / kExpScaleFraction);
+    return 1.0f;
 }
 
 float lossTarget(LossKind loss, float invScale, float target) {
@@ -40,6 +53,15 @@ void regressionGradient(LossKind loss, const float y[3], const float t[3], const
         const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
         const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
         w = 1.0f / (0.5f * (l * l + m * m) + 0.01f);
+    } else if (loss == LossKind::SymmetricRelativeExp) {
+        // dL/dy = dL/dp (p + 1), p = exp(y) - 1 as the asset decodes it (eval::expMinusOne: the same bits everywhere)
+        const float p[3] = {eval::expMinusOne(y[0]), eval::expMinusOne(y[1]), eval::expMinusOne(y[2])};
+        const float l = 0.2126f * std::max(0.0f, p[0]) + 0.7152f * std::max(0.0f, p[1]) + 0.0722f * std::max(0.0f, p[2]);
+        const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
+        constexpr float kFloor = 0.01f / (kExpScaleFraction * kExpScaleFraction);
+        w = 1.0f / (0.5f * (l * l + m * m) + kFloor);
+        for (int c = 0; c < 3; ++c) dy[c] = 2.0f * w * weight[c] * (p[c] - t[c]) * (p[c] + 1.0f);
+        return;
     }
     for (int c = 0; c < 3; ++c) dy[c] = 2.0f * w * weight[c] * (y[c] - t[c]);
 }

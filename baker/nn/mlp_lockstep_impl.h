@@ -186,6 +186,19 @@ inline void Step<V>::lossGradient(LossKind loss) {
         const float* row = values + ws.at[0] + size_t(k) * kPackedFloats * W;
         const float* y = values + ws.at[L] + size_t(k) * 3 * W;
         float* dy = deltas + ws.at[L] + size_t(k) * 3 * W;
+        if (loss == LossKind::SymmetricRelativeExp) {  // the exponential's lanes through the plain loss, one by one
+            for (int j = 0; j < W; ++j) {
+                const float yj[3] = {y[j], y[W + j], y[2 * W + j]};
+                const float tj[3] = {row[size_t(kPackedTarget) * W + j], row[size_t(kPackedTarget + 1) * W + j],
+                                     row[size_t(kPackedTarget + 2) * W + j]};
+                const float wj[3] = {row[size_t(kPackedWeight) * W + j], row[size_t(kPackedWeight + 1) * W + j],
+                                     row[size_t(kPackedWeight + 2) * W + j]};
+                float g[3];
+                regressionGradient(loss, yj, tj, wj, g);
+                for (int c = 0; c < 3; ++c) dy[size_t(c) * W + j] = float(k) < countLanes[j] ? g[c] : 0.0f;
+            }
+            continue;
+        }
         V w = V::splat(1.0f);
         if (loss == LossKind::RelativeL2) {
             const V y0 = V::load(y), y1 = V::load(y + W), y2 = V::load(y + 2 * W);

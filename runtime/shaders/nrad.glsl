@@ -302,14 +302,15 @@ vec3 nradForward(uint w, vec3 local, vec3 normal, vec3 direction) {
 }
 
 // Radiance of network `net` (decoded: transform, scale, clamped to [0, 1e30]) for the nine inputs; `scales` and
-// `weights`: the word offsets of the networks' output scales and fp16 weights (the surfaces' or the volume's).
-vec3 nradNetwork(uint scales, uint weights, int net, vec3 local, vec3 normal, vec3 direction) {
+// `weights`: the word offsets of the networks' output scales and fp16 weights (the surfaces' or the volume's);
+// `transform`: their output transform (NRAD_GPU_WORD_OUTPUT_TRANSFORM or NRAD_GPU_WORD_VOLUME_OUTPUT_TRANSFORM's).
+vec3 nradNetwork(uint scales, uint weights, uint transform, int net, vec3 local, vec3 normal, vec3 direction) {
     uint w = 2u * weights + uint(net) * nradWords[NRAD_GPU_WORD_PARAMS];  // half index of the network's first parameter
     bool default993 = nradWords[NRAD_GPU_WORD_HIDDEN_LAYERS] == 1u && nradWords[NRAD_GPU_WORD_HIDDEN_WIDTHS] == 9u;
     vec3 y;
     if (default993) y = nradForward993(w, local, normal, direction);
     else y = nradForward(w, local, normal, direction);
-    bool exponential = nradWords[NRAD_GPU_WORD_OUTPUT_TRANSFORM] == 1u;
+    bool exponential = transform == 1u;
     float scale = nradFloat(scales + uint(net));
     vec3 rgb;
     for (int c = 0; c < 3; ++c) {
@@ -323,8 +324,8 @@ vec3 nradNetwork(uint scales, uint weights, int net, vec3 local, vec3 normal, ve
 // ----- evaluation ---------------------------------------------------------------------------------------------
 
 // The networks at a point: those of the cell table at word `table` (the surfaces' or the volume's, whose scales
-// and weights are at words `scales` and `weightWords`), blended by the partition's supports.
-uint nradEvaluateNetworks(uint table, uint scales, uint weightWords, vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
+// and weights are at words `scales` and `weightWords`, decoded by `transform`), blended by the partition's supports.
+uint nradEvaluateNetworks(uint table, uint scales, uint weightWords, uint transform, vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
     radiance = vec3(0.0, 0.0, 0.0);
     if (!nradFinite3(position) || !nradFinite3(normal) || !nradFinite3(direction)) return NRAD_POINT_INVALID_INPUT;
     int cells[NRAD_MAX_SUPPORTS];
@@ -349,13 +350,13 @@ uint nradEvaluateNetworks(uint table, uint scales, uint weightWords, vec3 positi
         }
     }
     if (kept == 0) return NRAD_POINT_EMPTY_VOXEL;
-    for (int i = 0; i < kept; ++i) radiance += (weights[i] / sum) * nradNetwork(scales, weightWords, nets[i], locals[i], normal, direction);
+    for (int i = 0; i < kept; ++i) radiance += (weights[i] / sum) * nradNetwork(scales, weightWords, transform, nets[i], locals[i], normal, direction);
     return NRAD_POINT_OK;
 }
 
 uint nradEvaluate(vec3 position, vec3 normal, vec3 direction, out vec3 radiance) {
     return nradEvaluateNetworks(nradWords[NRAD_GPU_WORD_CELL_TABLE], nradWords[NRAD_GPU_WORD_SCALES], nradWords[NRAD_GPU_WORD_WEIGHTS],
-                                position, normal, direction, radiance);
+                                nradWords[NRAD_GPU_WORD_OUTPUT_TRANSFORM], position, normal, direction, radiance);
 }
 
 // The light in the volume (nradEvaluateVolumeBatch): E(x, n) / pi at any point of the grid for a unit normal, from the
@@ -366,7 +367,8 @@ uint nradEvaluateVolume(vec3 position, vec3 normal, out vec3 radiance) {
         return nradFinite3(position) && nradFinite3(normal) ? NRAD_POINT_EMPTY_VOXEL : NRAD_POINT_INVALID_INPUT;
     }
     return nradEvaluateNetworks(nradWords[NRAD_GPU_WORD_VOLUME_CELL_TABLE], nradWords[NRAD_GPU_WORD_VOLUME_SCALES],
-                                nradWords[NRAD_GPU_WORD_VOLUME_WEIGHTS], position, normal, normal, radiance);
+                                nradWords[NRAD_GPU_WORD_VOLUME_WEIGHTS], nradWords[NRAD_GPU_WORD_VOLUME_OUTPUT_TRANSFORM], position,
+                                normal, normal, radiance);
 }
 
 // ----- shading (eval.h: exp2Poly, reflectance, shade) ---------------------------------------------------------------

@@ -38,6 +38,9 @@
 #define NRAD_GPU_WORD_VOLUME_CELL_TABLE 38u
 #define NRAD_GPU_WORD_VOLUME_SCALES 39u
 #define NRAD_GPU_WORD_VOLUME_WEIGHTS 40u
+// How the volume's networks decode (layout version 2; format 2.6's kFlagVolumeExponential): 0 or 1 as
+// NRAD_GPU_WORD_OUTPUT_TRANSFORM (0 without volume networks).
+#define NRAD_GPU_WORD_VOLUME_OUTPUT_TRANSFORM 41u
 
 // A tree node's first word is `axis | split << 2` (the file's TREE record); this axis marks a leaf.
 #define NRAD_GPU_TREE_LEAF 3u

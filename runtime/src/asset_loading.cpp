@@ -203,7 +203,11 @@ NradStatus loadAsset(const void* data, size_t size, uint32_t flags, NradAsset* o
         prepareTables(*sub);
         return sub;
     };
-    if (!a->asset.volumeVoxels.empty()) a->volume = cellsAsset(a->asset.volumeVoxels, a->asset.volumeWeights);
+    const format::OutputTransform volumeTransform = a->asset.volumeTransform();
+    if (!a->asset.volumeVoxels.empty()) {
+        a->volume = cellsAsset(a->asset.volumeVoxels, a->asset.volumeWeights);
+        a->volume->asset.topology.outputTransform = volumeTransform;  // format::kFlagVolumeExponential
+    }
     if (!a->asset.glossyVoxels.empty()) a->glossy = cellsAsset(a->asset.glossyVoxels, a->asset.glossyWeights);
     prepareTables(*a);
     *out = a;

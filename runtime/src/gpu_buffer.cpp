@@ -25,7 +25,8 @@ struct GpuHeader {
     uint32_t paramsPerNetwork, networks, cells, treeNodes;
     uint32_t cellTable, scales, nodes, widths, boxes, weights, total;  // the sections' word offsets, the size
     uint32_t volumeNetworks, volumeCellTable, volumeScales, volumeWeights;  // 0 without volume networks
-    uint32_t reserved[NRAD_GPU_HEADER_WORDS - NRAD_GPU_WORD_VOLUME_WEIGHTS - 1];  // zero
+    uint32_t volumeOutputTransform;  // likewise
+    uint32_t reserved[NRAD_GPU_HEADER_WORDS - NRAD_GPU_WORD_VOLUME_OUTPUT_TRANSFORM - 1];  // zero
 };
 #define NRAD_AT_WORD(field, word) static_assert(offsetof(GpuHeader, field) == 4 * (word), #field " is not at " #word)
 NRAD_AT_WORD(magic, NRAD_GPU_WORD_MAGIC);
@@ -54,6 +55,7 @@ NRAD_AT_WORD(volumeNetworks, NRAD_GPU_WORD_VOLUME_NETWORKS);
 NRAD_AT_WORD(volumeCellTable, NRAD_GPU_WORD_VOLUME_CELL_TABLE);
 NRAD_AT_WORD(volumeScales, NRAD_GPU_WORD_VOLUME_SCALES);
 NRAD_AT_WORD(volumeWeights, NRAD_GPU_WORD_VOLUME_WEIGHTS);
+NRAD_AT_WORD(volumeOutputTransform, NRAD_GPU_WORD_VOLUME_OUTPUT_TRANSFORM);
 #undef NRAD_AT_WORD
 static_assert(sizeof(GpuHeader) == 4 * NRAD_GPU_HEADER_WORDS, "the header is NRAD_GPU_HEADER_WORDS words");
 static_assert(NRAD_GPU_TREE_LEAF == format::kTreeLeaf, "tree nodes are packed as the file's TREE records");
@@ -98,6 +100,7 @@ GpuHeader headerOf(const NradAsset_& a, const GpuLayout& l) {
         h.volumeCellTable = uint32_t(l.volumeCellTable);
         h.volumeScales = uint32_t(l.volumeScales);
         h.volumeWeights = uint32_t(l.volumeWeights);
+        h.volumeOutputTransform = uint32_t(a.volume->asset.topology.outputTransform);
     }
     return h;
 }

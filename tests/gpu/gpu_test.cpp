@@ -230,8 +230,12 @@ TEST(Gpu, VolumeQueryMatchesTheCpuRuntime) {
     const GBuffer points = randomPoints(20000, 12);
     for (bool tree : {false, true})
         for (float band : {0.0f, 0.125f}) {
-            format::Asset a = test::randomAsset({9}, format::WeightEncoding::Float16, format::OutputTransform::Exponential, 11,
+            // On the tree the surfaces decode linearly and the volume exponentially (format::kFlagVolumeExponential,
+            // the GPU buffer's word 41); on the grid both as the topology says, exponentially.
+            format::Asset a = test::randomAsset({9}, format::WeightEncoding::Float16,
+                                                tree ? format::OutputTransform::ClampedLinear : format::OutputTransform::Exponential, 11,
                                                 glm::uvec3(4, 3, 5), band);
+            if (tree) a.header.flags |= format::kFlagVolumeExponential;
             if (tree) {
                 ASSERT_TRUE(makeTreeAsset(a));
             }
@@ -307,6 +311,8 @@ TEST(Gpu, HlslMatchesTheCpuRuntime) {
         a.volumeWeights.resize(a.volumeVoxels.size() * a.topology.parameterCount());
         for (float& w : a.volumeWeights) w = format::halfToFloat(format::floatToHalf(u(rng)));
         a.header.flags |= format::kFlagScatteredRadiance | format::kFlagDemodulated;
+        // The linear 16-8 asset's volume decodes exponentially (format::kFlagVolumeExponential), its surfaces linearly.
+        if (c.transform == format::OutputTransform::ClampedLinear && !c.extreme) a.header.flags |= format::kFlagVolumeExponential;
         nrad::Asset asset = load(a);
         for (bool volume : {false, true})
             for (bool shade : {false, true}) {

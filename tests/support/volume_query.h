@@ -17,7 +17,7 @@ namespace nrad::test {
 class VolumeQuery {
 public:
     explicit VolumeQuery(const format::Asset& a, bool glossy = false)
-        : partition_(a), field_(partition_, a.topology, a.topology.outputTransform, false) {
+        : partition_(a), field_(partition_, a.topology, glossy ? a.topology.outputTransform : a.volumeTransform(), false) {
         const size_t per = a.topology.parameterCount();
         const std::vector<format::VoxelEntry>& voxels = glossy ? a.glossyVoxels : a.volumeVoxels;
         const std::vector<float>& weights = glossy ? a.glossyWeights : a.volumeWeights;

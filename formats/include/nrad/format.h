@@ -21,9 +21,10 @@ namespace nrad::format {
 // PNG-style magic: catches text-mode transfers (CR LF, ^Z) as well as wrong files.
 constexpr std::array<uint8_t, 8> kMagic = {'N', 'R', 'A', 'D', 0x0D, 0x0A, 0x1A, 0x0A};
 constexpr uint16_t kVersionMajor = 2;  // a reader rejects any other major version (1: networks stored L)
-constexpr uint16_t kVersionMinor = 5;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
+constexpr uint16_t kVersionMinor = 6;  // a reader accepts newer minors (new optional sections only); 2.1: blending,
                                        // 2.2: the kd-tree partition (TREE), 2.3: planes no band crosses (TreeNode::hard),
-                                       // 2.4: the light in the volume (VVOX, VWGT), 2.5: its glossy response (VGLX, VGLW)
+                                       // 2.4: the light in the volume (VVOX, VWGT), 2.5: its glossy response (VGLX, VGLW),
+                                       // 2.6: the volume's networks decoded exponentially (kFlagVolumeExponential)
 
 // Header flags: what the networks store (nrad/eval.h, shade()). A reader rejects unknown flags.
 constexpr uint32_t kFlagScatteredRadiance = 1u;  // L - Le: the surface's own emission is added when shading
@@ -34,7 +35,11 @@ constexpr uint32_t kFlagBlended = 4u;
 // The grid's lattice is partitioned by a kd-tree (TREE section) and VOXL indexes its leaves, not the
 // lattice's voxels. A 2.0 or 2.1 reader rejects the flag rather than read leaf indices as voxels.
 constexpr uint32_t kFlagTree = 8u;
-constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated | kFlagBlended | kFlagTree;
+// The volume's networks (VVOX) decode through OutputTransform::Exponential, whatever the topology's (which the
+// surfaces and the glossy response keep); only with VVOX. A 2.5 reader rejects the flag rather than read them as
+// linear. Without it the volume decodes as the topology says (2.4, 2.5).
+constexpr uint32_t kFlagVolumeExponential = 16u;
+constexpr uint32_t kKnownFlags = kFlagScatteredRadiance | kFlagDemodulated | kFlagBlended | kFlagTree | kFlagVolumeExponential;
 constexpr float kMaxBlendBand = 0.5f;  // the band's half-width, in voxels: bands of opposite faces never overlap
 
 constexpr uint32_t kHeaderSize = 64;
@@ -259,8 +264,8 @@ enum class DecodeStatus {
     TrailingBytes,  // bytes after the last section
     BadTree,  // TREE without kFlagTree (or the reverse), or a tree that is cyclic, shared, out of range, too
               // deep, or whose splits leave an empty or overlapping leaf
-    BadVolume,  // VVOX without VWGT, VGLX without VGLW (or the reverse), VGLX without VVOX, or either invalid as
-                // VOXL or WGHT would be
+    BadVolume,  // VVOX without VWGT, VGLX without VGLW (or the reverse), VGLX or kFlagVolumeExponential without
+                // VVOX, or either invalid as VOXL or WGHT would be
 };
 
 inline const char* decodeStatusString(DecodeStatus s) {
@@ -295,12 +300,17 @@ struct Asset {
     std::string metadata;  // JSON text, empty if the section is absent
     std::vector<TreeNode> tree;  // with kFlagTree: the partition; empty: the uniform grid
     uint32_t leafCount = 0;  // the tree's leaves (with kFlagTree), else 0
-    // The volume's networks (VVOX, VWGT; empty: none): the same cells, topology and encoding as the surfaces'.
+    // The volume's networks (VVOX, VWGT; empty: none): the same cells, topology and encoding as the surfaces', the
+    // output transform Exponential with kFlagVolumeExponential (volumeTransform()).
     std::vector<VoxelEntry> volumeVoxels;
     std::vector<float> volumeWeights;
     // The volume's glossy response (VGLX, VGLW; empty: none; only with volume networks): likewise.
     std::vector<VoxelEntry> glossyVoxels;
     std::vector<float> glossyWeights;
+    // How the volume's networks' outputs decode (kFlagVolumeExponential, else the topology's transform).
+    OutputTransform volumeTransform() const {
+        return (header.flags & kFlagVolumeExponential) ? OutputTransform::Exponential : topology.outputTransform;
+    }
     // What VOXL indexes: the tree's leaves, or the grid's voxels.
     uint64_t cellCount() const { return tree.empty() ? grid.voxelCount() : uint64_t(leafCount); }
 };
@@ -590,6 +600,7 @@ inline DecodeStatus decode(const uint8_t* data, size_t size, Asset& out) {
     std::vector<VoxelEntry> volumeVoxels;
     std::vector<float> volumeWeights;
     if ((spans.vvox.at != nullptr) != (spans.vwgt.at != nullptr)) return DecodeStatus::BadVolume;
+    if ((h.flags & kFlagVolumeExponential) && !spans.vvox.at) return DecodeStatus::BadVolume;
     if (spans.vvox.at) {
         if (decodeVoxels(spans.vvox, cells, volumeVoxels) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
         if (decodeWeights(spans.vwgt, t, uint32_t(volumeVoxels.size()), volumeWeights) != DecodeStatus::Ok) return DecodeStatus::BadVolume;
@@ -737,7 +748,13 @@ inline std::vector<uint8_t> encodeUnchecked(const Asset& a) {
     out[9] = uint8_t(kVersionMajor >> 8);
     // The lowest minor version that describes the content, so that 2.0 readers still load unblended assets.
     const bool hard = (a.header.flags & kFlagTree) && hardPlanes(a.tree) > 0;
-    const uint16_t minor = !a.glossyVoxels.empty() ? 5 : !a.volumeVoxels.empty() ? 4 : hard ? 3 : (a.header.flags & kFlagTree) ? 2 : (a.header.flags & kFlagBlended) ? 1 : 0;
+    const uint16_t minor = (a.header.flags & kFlagVolumeExponential) ? 6
+                           : !a.glossyVoxels.empty()                ? 5
+                           : !a.volumeVoxels.empty()                ? 4
+                           : hard                                   ? 3
+                           : (a.header.flags & kFlagTree)           ? 2
+                           : (a.header.flags & kFlagBlended)        ? 1
+                                                                    : 0;
     out[10] = uint8_t(minor);
     out[11] = uint8_t(minor >> 8);
     put32(out, 12, a.header.flags & kKnownFlags);
@@ -784,6 +801,7 @@ inline std::vector<uint8_t> encode(const Asset& a) {
     for (float w : a.volumeWeights) NRAD_CHECK(std::isfinite(w));
     NRAD_CHECK(a.glossyWeights.size() == a.glossyVoxels.size() * a.topology.parameterCount());
     NRAD_CHECK(a.glossyVoxels.empty() || !a.volumeVoxels.empty());
+    NRAD_CHECK(!(a.header.flags & kFlagVolumeExponential) || !a.volumeVoxels.empty());
     for (size_t i = 0; i < a.glossyVoxels.size(); ++i) {
         NRAD_CHECK(a.glossyVoxels[i].index < cells && (i == 0 || a.glossyVoxels[i].index > a.glossyVoxels[i - 1].index));
         NRAD_CHECK(std::isfinite(a.glossyVoxels[i].scale) && a.glossyVoxels[i].scale > 0.0f);

@@ -223,7 +223,7 @@ NRAD_API size_t nradGetScratchSize(void);
  * the networks' output scales, the kd-tree (nodes, blending widths, leaf boxes) if the asset has one, and the
  * weights in fp16, two per word (docs/runtime.md, "GPU buffers"). Built from the loaded, validated asset: the
  * loader's checks apply unchanged. fp16 weights are copied exactly; fp32 weights are rounded to fp16. */
-#define NRAD_GPU_LAYOUT_VERSION 1
+#define NRAD_GPU_LAYOUT_VERSION 2  /* 2: the volume's own output transform (word 41) */
 /* The widest hidden layer the GLSL evaluates (its per-invocation arrays); wider assets cannot be packed. */
 #define NRAD_GPU_MAX_HIDDEN_WIDTH 32
 /* The largest cell -> network table packed (cells: grid voxels, or tree leaves); larger assets cannot be. */

@@ -219,7 +219,9 @@ TEST(VolumeLight, AReceiverInASealedDarkRoomReadsItsDarknessNotTheLitRoom) {
     std::printf("sealed rooms: lit room mean %.4g, dark room mean %.3g, max %.3g\n", lit, dark, darkest);
     EXPECT_GT(lit, 0.05);
     EXPECT_LT(dark, 1e-3 * lit) << "the dark room reads the lit room's light";
-    EXPECT_LT(darkest, 0.05 * lit);  // measured 1.7%: the goal is within 10% of the reference
+    // Measured 5.5% at most, a point by the wall (the exponential output; 1.7% with the linear one), the mean 9.4e-4:
+    // the goal is within 10% of the reference.
+    EXPECT_LT(darkest, 0.1 * lit);
 }
 
 // The volume's noisy targets get the paths that bring their relative standard error to the bound (as the surfaces'
@@ -258,7 +260,13 @@ TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
     const std::vector<uint8_t> bytes = format::encode(r.asset);
     format::Asset back;
     ASSERT_EQ(format::decode(bytes.data(), bytes.size(), back), format::DecodeStatus::Ok);
-    EXPECT_EQ(bytes[10], 4u) << "an asset with volume networks is version 2.4";
+    // The volume's networks decode exponentially (symmetric-relative-exp), the surfaces' as TOPO says: flag bit 4,
+    // version 2.6.
+    EXPECT_EQ(bytes[10], 6u) << "an asset with exponential volume networks is version 2.6";
+    EXPECT_TRUE(back.header.flags & format::kFlagVolumeExponential);
+    EXPECT_EQ(back.volumeTransform(), format::OutputTransform::Exponential);
+    EXPECT_EQ(back.topology.outputTransform, format::OutputTransform::ClampedLinear);
+    for (const format::VoxelEntry& v : back.volumeVoxels) EXPECT_GT(v.scale, 0.0f);
     ASSERT_EQ(back.volumeVoxels.size(), r.asset.volumeVoxels.size());
     for (size_t k = 0; k < back.volumeVoxels.size(); ++k) EXPECT_EQ(back.volumeVoxels[k].index, r.asset.volumeVoxels[k].index);
     EXPECT_EQ(bytes.size(), format::encodedSize(back.topology, back.voxels.size(), 0, back.metadata.size(), back.volumeVoxels.size()));
@@ -269,6 +277,15 @@ TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
     format::Asset noVolume;
     ASSERT_EQ(format::decode(plain.data(), plain.size(), noVolume), format::DecodeStatus::Ok);
     EXPECT_TRUE(noVolume.volumeVoxels.empty());
+    EXPECT_FALSE(noVolume.header.flags & format::kFlagVolumeExponential);
+    // The flag without volume networks is refused.
+    {
+        format::Asset flagged = noVolume;
+        flagged.header.flags |= format::kFlagVolumeExponential;
+        const std::vector<uint8_t> flaggedBytes = format::encodeUnchecked(flagged);
+        format::Asset refused;
+        EXPECT_EQ(format::decode(flaggedBytes.data(), flaggedBytes.size(), refused), format::DecodeStatus::BadVolume);
+    }
     // VVOX without VWGT is refused: VWGT's type renamed to one this version does not know (and the CRCs fixed).
     std::vector<uint8_t> bad = bytes;
     const uint32_t sections = uint32_t(bad[20]) | uint32_t(bad[21]) << 8;
@@ -296,11 +313,11 @@ TEST(VolumeLight, TheAssetCarriesTheVolumeNetworks) {
     // The same bytes whatever the threads.
     s.volume.enabled = true;
     EXPECT_TRUE(test::bakeBytes(scene, s, 1) == test::bakeBytes(scene, s, 2));
-    // With the glossy response: version 2.5, its networks round trip, and the diffuse ones keep their bytes.
+    // With the glossy response (2.5, here 2.6 for the flag): its networks round trip, and the diffuse ones keep their bytes.
     s.volume.glossy = true;
     const BakeResult g = bakeScene(scene, s);
     const std::vector<uint8_t> glossyBytes = format::encode(g.asset);
-    EXPECT_EQ(glossyBytes[10], 5u);
+    EXPECT_EQ(glossyBytes[10], 6u);
     format::Asset glossyBack;
     ASSERT_EQ(format::decode(glossyBytes.data(), glossyBytes.size(), glossyBack), format::DecodeStatus::Ok);
     ASSERT_EQ(glossyBack.glossyVoxels.size(), g.asset.glossyVoxels.size());

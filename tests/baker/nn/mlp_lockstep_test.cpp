@@ -50,7 +50,15 @@ void referenceStep(const NetworkShape& s, std::vector<float>& p, std::vector<flo
                             0.0722f * std::max(0.0f, row[kPackedTarget + 2]);
             w = 1.0f / (0.5f * (lum * lum + t * t) + 0.01f);
         }
-        for (int c = 0; c < 3; ++c) d[L].push_back(2.0f * w * row[kPackedWeight + c] * (y[size_t(c)] - row[kPackedTarget + c]));
+        if (loss == LossKind::SymmetricRelativeExp) {  // loss.cpp's regressionGradient, the reference's own
+            const float yy[3] = {y[0], y[1], y[2]}, tt[3] = {row[kPackedTarget], row[kPackedTarget + 1], row[kPackedTarget + 2]};
+            const float ww[3] = {row[kPackedWeight], row[kPackedWeight + 1], row[kPackedWeight + 2]};
+            float g[3];
+            regressionGradient(loss, yy, tt, ww, g);
+            d[L].assign(g, g + 3);
+        } else {
+            for (int c = 0; c < 3; ++c) d[L].push_back(2.0f * w * row[kPackedWeight + c] * (y[size_t(c)] - row[kPackedTarget + c]));
+        }
         for (size_t l = L - 1; l >= 1; --l) {
             const int in = width(l), out = width(l + 1);
             for (int i = 0; i < in; ++i) {
@@ -151,7 +159,7 @@ TEST(MlpLockstep, EveryLaneIsItsNetworkTrainedAloneBitForBit) {
     const std::vector<LockstepKernel> kernels = lockstepKernels();
     for (const LockstepKernel& k : kernels) std::printf("lockstep kernel %s (%d lanes)\n", k.name, k.lanes);
     for (const NetworkShape& s : shapes())
-        for (LossKind loss : {LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::L2})
+        for (LossKind loss : {LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::L2, LossKind::SymmetricRelativeExp})
             for (const LockstepKernel& k : kernels)
                 EXPECT_EQ(mismatches(s, loss, k), 0u) << k.name << ", " << s.hidden.size() << " hidden layers, " << lossName(loss);
 }

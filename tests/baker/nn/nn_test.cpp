@@ -152,6 +152,36 @@ TEST(Loss, RegressionGradientsMatchFiniteDifferences) {
             EXPECT_NEAR(dy[c], numeric, 1e-3 * std::max(1.0, std::abs(numeric))) << lossName(loss) << " channel " << c;
         }
     }
+    {
+        // The exponential one: the symmetric loss of p = exp(y) - 1 against the linear target, its weight
+        // 1 / ((lum(p)^2 + lum(t)^2) / 2 + 1) held constant (the floor 0.01 / kExpScaleFraction^2 = 1).
+        const LossKind loss = LossKind::SymmetricRelativeExp;
+        const float y[3] = {0.9f, -0.2f, 1.6f};
+        float dy[3];
+        regressionGradient(loss, y, t, w, dy);
+        double p[3], l = 0.0;
+        for (int k = 0; k < 3; ++k) p[k] = std::expm1(double(y[k]));
+        l = 0.2126 * p[0] + 0.0722 * p[2];  // p[1] < 0 counts as 0
+        const double m = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2], scale = 1.0 / (0.5 * (l * l + m * m) + 1.0);
+        for (int c = 0; c < 3; ++c) {
+            auto value = [&](double v) {
+                double e = 0.0;
+                for (int k = 0; k < 3; ++k) {
+                    const double d = std::expm1(k == c ? v : double(y[k])) - t[k];
+                    e += scale * w[k] * d * d;
+                }
+                return e;
+            };
+            const double numeric = (value(y[c] + 1e-4) - value(y[c] - 1e-4)) / 2e-4;
+            EXPECT_NEAR(dy[c], numeric, 1e-4 * std::max(1.0, std::abs(numeric))) << lossName(loss) << " channel " << c;
+        }
+        // Its scale is a tenth of the mean, and a network starts at the mean: exp(b) - 1 = 10.
+        EXPECT_TRUE(exponentialOutput(loss));
+        EXPECT_FALSE(exponentialOutput(LossKind::SymmetricRelativeL2));
+        EXPECT_FLOAT_EQ(scaleFraction(loss), 0.1f);
+        EXPECT_NEAR(std::expm1(double(initialOutputBias(loss))), 10.0, 1e-5);
+        EXPECT_FLOAT_EQ(lossTarget(loss, 0.5f, 3.0f), 1.5f);
+    }
     // Targets in the output space: divided by the scale, through log1p for the log loss.
     EXPECT_FLOAT_EQ(lossTarget(LossKind::L2, 0.5f, 3.0f), 1.5f);
     EXPECT_FLOAT_EQ(lossTarget(LossKind::Log, 0.5f, 3.0f), std::log1p(1.5f));
@@ -319,7 +349,7 @@ TEST(Trainer, ReproducesKnownFunctions) {
     VoxelGrid grid(bounds, glm::uvec3(1));
     std::vector<TrainingSample> exact = makeSamples(grid, representable, 3000);
     std::vector<TrainingSample> approx = makeSamples(grid, smooth, 3000);
-    for (LossKind loss : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log}) {
+    for (LossKind loss : {LossKind::L2, LossKind::RelativeL2, LossKind::SymmetricRelativeL2, LossKind::Log, LossKind::SymmetricRelativeExp}) {
         TrainSettings settings;
         settings.loss = loss;
         settings.epochs = 600;
@@ -332,7 +362,7 @@ TEST(Trainer, ReproducesKnownFunctions) {
             for (float p : r.params) ASSERT_TRUE(std::isfinite(p));
             // Stated bounds on the held-out relMSE. Exactly representable: 2e-4 (1.4% RMS) with the linear
             // output; the log-space network's exp() output cannot be exact, so 2e-3. The smooth function: 1e-2.
-            double bound = which == 1 ? 1e-2 : (loss == LossKind::Log ? 2e-3 : 2e-4);
+            double bound = which == 1 ? 1e-2 : (exponentialOutput(loss) ? 2e-3 : 2e-4);
             EXPECT_LT(r.heldOutRelMse, bound) << lossName(loss) << (which == 0 ? " representable" : " smooth");
         }
     }
