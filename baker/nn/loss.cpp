@@ -54,8 +54,10 @@ void regressionGradient(LossKind loss, const float y[3], const float t[3], const
         const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
         w = 1.0f / (0.5f * (l * l + m * m) + 0.01f);
     } else if (loss == LossKind::SymmetricRelativeExp) {
-        // dL/dy = dL/dp (p + 1), p = exp(y) - 1 as the asset decodes it (eval::expMinusOne: the same bits everywhere)
-        const float p[3] = {eval::expMinusOne(y[0]), eval::expMinusOne(y[1]), eval::expMinusOne(y[2])};
+        // dL/dy = dL/dp (p + 1), p = exp(y) - 1 as the asset decodes it (eval::expMinusOne: the same bits everywhere),
+        // y taken at most 30 (p = 1e13 of the scale: p^2 stays finite, and so the gradient, of a diverging network)
+        const float p[3] = {eval::expMinusOne(std::min(y[0], 30.0f)), eval::expMinusOne(std::min(y[1], 30.0f)),
+                            eval::expMinusOne(std::min(y[2], 30.0f))};
         const float l = 0.2126f * std::max(0.0f, p[0]) + 0.7152f * std::max(0.0f, p[1]) + 0.0722f * std::max(0.0f, p[2]);
         const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
         constexpr float kFloor = 0.01f / (kExpScaleFraction * kExpScaleFraction);
