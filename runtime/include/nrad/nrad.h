@@ -99,7 +99,8 @@ typedef struct NradAssetInfo {
     uint32_t hiddenWidths[NRAD_MAX_HIDDEN_LAYERS];
     uint32_t parametersPerNetwork;
     uint32_t weightEncoding;   /* 0 = fp32, 1 = fp16 (as stored in the file) */
-    uint32_t outputTransform;  /* 0 = scale max(0, y), 1 = scale (exp(y) - 1) */
+    uint32_t outputTransform;  /* 0 = scale max(0, y), 1 = scale (exp(y) - 1): the surfaces' (the volume's networks
+                                  decode exponentially where format 2.6's volume flag says so; the runtime applies it) */
     uint32_t contentFlags;     /* NRAD_CONTENT_*: what the networks store */
     float blendBand;           /* with NRAD_CONTENT_BLENDED: half-width of the blending band, in voxels; else 0 */
     uint64_t fileBytes;        /* size of the asset data */
