@@ -143,6 +143,12 @@ struct InsertedFigure {
     size_t exactPixels = 0;
     // Against the exact volume light instead of the reference, on its pixels: what the representation alone loses.
     double neuralVsExact = 0.0, baselineVsExact = 0.0;
+    // The baseline's relMSE against the reference on the exact light's pixels over the exact light's own: how far
+    // below the probes a perfect query of the volume could be (the objects' effect on the light they receive, their
+    // shadows and interreflections, is in the reference and in no query of the light without them); 0 without a
+    // baseline.
+    double bestRatio = 0.0;
+    double baselineAtExact = 0.0;  // the baseline's relMSE against the reference on the exact light's pixels
 };
 
 struct ValidationResult {

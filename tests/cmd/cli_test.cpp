@@ -583,6 +583,14 @@ TEST(CliInsert, BadObjectsAreRefusedAndValidateMeasuresTheInsertedOnes) {
         EXPECT_LT(o["neural_relmse"].get<double>(), 1.0);
         EXPECT_GT(o["baseline_relmse"].get<double>(), 0.0);
         EXPECT_GT(o["exact_volume_light"]["pixels"].get<size_t>(), 0u);
+        // How far below the probes a perfect volume query could be: their relMSE over the exact light's, both
+        // against the reference on the exact light's pixels.
+        const nlohmann::json& e = o["exact_volume_light"];
+        EXPECT_GT(e["relmse"].get<double>(), 0.0);
+        EXPECT_NEAR(e["best_ratio_baseline_over_exact"].get<double>(),
+                    e["baseline_relmse_on_its_pixels"].get<double>() / e["relmse"].get<double>(),
+                    1e-9 * e["best_ratio_baseline_over_exact"].get<double>());
+        EXPECT_GT(e["baseline_relmse_on_its_pixels"].get<double>(), 0.0);
         EXPECT_GT(o["neural_mean_ratio"].get<double>(), 0.5);
         EXPECT_LT(o["neural_mean_ratio"].get<double>(), 2.0);
     }
