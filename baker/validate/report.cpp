@@ -292,7 +292,7 @@ nlohmann::json reportJson(const ValidationResult& r, const nlohmann::json& bakeS
                 o["relmse_ratio_baseline_over_neural"] = num(f.neuralRelMse > 0.0 ? f.baselineRelMse / f.neuralRelMse : 0.0);
                 o["exact_volume_light"]["baseline_relmse_against_it"] = num(f.baselineVsExact);
                 o["exact_volume_light"]["relmse_ratio_baseline_over_neural"] = num(f.neuralVsExact > 0.0 ? f.baselineVsExact / f.neuralVsExact : 0.0);
-                // how far below the baseline a perfect query of the volume could be (InsertedFigure::bestRatio)
+                // how far below the baseline a perfect query of the volume would read (InsertedFigure::bestRatio)
                 o["exact_volume_light"]["baseline_relmse_on_its_pixels"] = num(f.baselineAtExact);
                 o["exact_volume_light"]["best_ratio_baseline_over_exact"] = num(f.bestRatio);
             }
@@ -608,7 +608,7 @@ static void htmlInserted(std::ostringstream& h, const ValidationResult& r) {
     h << "<th>mean / reference (asset)</th>";
     if (r.baseline) h << "<th>mean / reference (SH)</th>";
     h << "<th>relMSE exact volume light</th><th>asset against it</th>";
-    if (r.baseline) h << "<th>SH against it</th><th>a perfect volume query: at most x below SH</th>";
+    if (r.baseline) h << "<th>SH against it</th><th>a perfect volume query: x below SH</th>";
     h << "</tr>\n";
     for (const InsertedFigure& f : r.inserted) {
         h << "<tr><td>" << escape(f.name) << "</td><td>" << f.pixels << "</td><td>" << fmt("%.4g", f.neuralRelMse) << "</td>";

@@ -1036,7 +1036,7 @@ void measureInserted(ValidationRun& v, const FirstHits& hits, bool glossy) {
             std::snprintf(line, sizeof line,
                           "inserted %s: %zu pixels, relMSE asset %.4g, SH irradiance probes %.4g (%.3gx), exact volume light %.4g; "
                           "mean %.3f, %.3f, %.3f of the reference's; against the exact volume light: asset %.4g, SH %.4g (%.3gx); "
-                          "a perfect volume query at most %.3gx below SH",
+                          "a perfect volume query would read %.3gx below SH",
                           f.name.c_str(), f.pixels, f.neuralRelMse, f.baselineRelMse, ratio(f.baselineRelMse, f.neuralRelMse),
                           f.exactRelMse, f.neuralMeanRatio, f.baselineMeanRatio, f.exactMeanRatio, f.neuralVsExact,
                           f.baselineVsExact, ratio(f.baselineVsExact, f.neuralVsExact), f.bestRatio);

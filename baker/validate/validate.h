@@ -144,7 +144,7 @@ struct InsertedFigure {
     // Against the exact volume light instead of the reference, on its pixels: what the representation alone loses.
     double neuralVsExact = 0.0, baselineVsExact = 0.0;
     // The baseline's relMSE against the reference on the exact light's pixels over the exact light's own: how far
-    // below the probes a perfect query of the volume could be (the objects' effect on the light they receive, their
+    // below the probes a perfect query of the volume would read (the objects' effect on the light they receive, their
     // shadows and interreflections, is in the reference and in no query of the light without them); 0 without a
     // baseline.
     double bestRatio = 0.0;
