@@ -528,8 +528,10 @@ inline void decodeOutputs(format::OutputTransform transform, float scale, const 
 // The volume query: for a point x anywhere in the grid and a unit normal n, the radiance a white Lambertian
 // receiver at x facing n scatters, E(x, n) / pi. The surfaces' contract read with the volume's cells and networks:
 // supports()/treeSupports() and keepOccupied() over the cells with a volume network, encodeInputs(local, n, n)
-// (the normal in the direction slot too), forward(), decodeOutputs() with the cell's VVOX scale, the weighted sum;
-// never multiplied by a reflectance, never with an emission added. A diffuse receiver of albedo a reflects a times it.
+// (the normal in the direction slot too), forward(), decodeOutputs() with the cell's VVOX scale and the volume's
+// transform (format::Asset::volumeTransform(): exponential with format 2.6's kFlagVolumeExponential), the weighted
+// sum; never multiplied by a reflectance, never with an emission added. A diffuse receiver of albedo a reflects a
+// times it.
 
 // The material terms a shader has at a pixel (an engine's G-buffer): base colour (textures applied, linear),
 // metallic, roughness (perceptual), the KHR_materials_specular factor (1 where the material has none) and
