@@ -428,8 +428,8 @@ void assembleAsset(const Scene& scene, const BakeSettings& settings, const BakeC
         a.weights.insert(a.weights.end(), v.params.begin(), v.params.end());
     }
     for (const VoxelTrainResult& v : result.volume) {
-        // format::kFlagVolumeExponential: the volume's networks decode exponentially (volumeLoss) where the
-        // surfaces' do not
+        // format::kFlagVolumeExponential: the volume's networks decode exponentially (volumeNetworks' loss), whatever
+        // the surfaces' topology says
         if (v.transform == format::OutputTransform::Exponential) a.header.flags |= format::kFlagVolumeExponential;
         a.volumeVoxels.push_back({v.voxel, v.scale});
         a.volumeWeights.insert(a.volumeWeights.end(), v.params.begin(), v.params.end());

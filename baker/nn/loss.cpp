@@ -44,22 +44,29 @@ float lossTarget(LossKind loss, float invScale, float target) {
     return loss == LossKind::Log ? std::log1p(std::max(0.0f, t)) : t;
 }
 
+namespace {
+
+// The luminance of the positive parts (what the relative losses scale by).
+inline float positiveLuminance(const float v[3]) {
+    return 0.2126f * std::max(0.0f, v[0]) + 0.7152f * std::max(0.0f, v[1]) + 0.0722f * std::max(0.0f, v[2]);
+}
+
+}  // namespace
+
 void regressionGradient(LossKind loss, const float y[3], const float t[3], const float weight[3], float dy[3]) {
     float w = 1.0f;
     if (loss == LossKind::RelativeL2) {
-        const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
+        const float l = positiveLuminance(y);
         w = 1.0f / (l * l + 0.01f);
     } else if (loss == LossKind::SymmetricRelativeL2) {
-        const float l = 0.2126f * std::max(0.0f, y[0]) + 0.7152f * std::max(0.0f, y[1]) + 0.0722f * std::max(0.0f, y[2]);
-        const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
+        const float l = positiveLuminance(y), m = positiveLuminance(t);
         w = 1.0f / (0.5f * (l * l + m * m) + 0.01f);
     } else if (loss == LossKind::SymmetricRelativeExp) {
         // dL/dy = dL/dp (p + 1), p = exp(y) - 1 as the asset decodes it (eval::expMinusOne: the same bits everywhere),
         // y taken at most 30 (p = 1e13 of the scale: p^2 stays finite, and so the gradient, of a diverging network)
         const float p[3] = {eval::expMinusOne(std::min(y[0], 30.0f)), eval::expMinusOne(std::min(y[1], 30.0f)),
                             eval::expMinusOne(std::min(y[2], 30.0f))};
-        const float l = 0.2126f * std::max(0.0f, p[0]) + 0.7152f * std::max(0.0f, p[1]) + 0.0722f * std::max(0.0f, p[2]);
-        const float m = 0.2126f * std::max(0.0f, t[0]) + 0.7152f * std::max(0.0f, t[1]) + 0.0722f * std::max(0.0f, t[2]);
+        const float l = positiveLuminance(p), m = positiveLuminance(t);
         constexpr float kFloor = 0.01f / (kExpScaleFraction * kExpScaleFraction);
         w = 1.0f / (0.5f * (l * l + m * m) + kFloor);
         for (int c = 0; c < 3; ++c) dy[c] = 2.0f * w * weight[c] * (p[c] - t[c]) * (p[c] + 1.0f);

@@ -1028,8 +1028,10 @@ void measureInserted(ValidationRun& v, const FirstHits& hits, bool glossy) {
         f.exactMeanRatio = ratio(s.exactLum, s.exactRefLum);
         f.neuralVsExact = ratio(s.neuralVsExact, double(s.exactPixels));
         f.baselineVsExact = ratio(s.baselineVsExact, double(s.exactPixels));
-        f.baselineAtExact = ratio(s.baselineAtExact, double(s.exactPixels));
-        if (r.baseline) f.bestRatio = ratio(s.baselineAtExact, s.exact);
+        if (r.baseline) {
+            f.baselineAtExact = ratio(s.baselineAtExact, double(s.exactPixels));
+            f.bestRatio = ratio(s.baselineAtExact, s.exact);
+        }
         r.inserted.push_back(f);
         char line[640];
         if (r.baseline)

@@ -148,7 +148,7 @@ struct InsertedFigure {
     // shadows and interreflections, is in the reference and in no query of the light without them); 0 without a
     // baseline.
     double bestRatio = 0.0;
-    double baselineAtExact = 0.0;  // the baseline's relMSE against the reference on the exact light's pixels
+    double baselineAtExact = 0.0;  // the baseline's relMSE against the reference on the exact light's pixels (0 without)
 };
 
 struct ValidationResult {
